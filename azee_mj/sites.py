@@ -1,0 +1,325 @@
+"""The AZee vocabulary (sites, bones, loci, morphs) and its map onto an MJCF signer.
+
+AZee speaks of an abstract skeleton (44 bones, each with a DIR and an NRM axis) and named
+body points (sites). A :class:`SignerMap` says which model body carries each bone, which
+model site is each AZee site, and which joint changes each morph makes. The bundled signer's
+map is :data:`DEFAULT_MAP`; another MJCF signer is used by building a ``SignerMap`` for it
+(see ``docs/retargeting.md``).
+
+Vectors are unit vectors in the body frame; joint changes are in radians (hinges) or metres
+(slides).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+from collections.abc import Mapping
+from types import MappingProxyType
+
+import numpy as np
+
+SIDES = ("L", "R")
+
+#: Digit letters used in site names, and the bone stem of each digit.
+DIGITS = {"T": "thumb", "I": "index", "M": "middle", "R": "ring", "L": "little"}
+FINGERS = ("index", "middle", "ring", "little")
+
+#: Sites on the midline: the AZee name is the stem itself.
+MIDLINE_STEMS = ("HEAD", "FH", "NO", "NSP", "MO", "TO", "CH", "BEB", "NK", "ST", "AB", "ABST")
+#: Lateral stems: the AZee name is ``STEM_L`` / ``STEM_R``.
+LATERAL_STEMS = (
+    "EB", "EBi", "EBe", "EYE", "TE", "CK", "EAR", "LOBE", "MO", "NO", "NK",
+    "ST", "AB", "ABST", "SH", "ARMpit",
+    "ARM", "ARMsh", "EL", "ELi", "F_ARM", "F_ARMi", "WR", "WRt", "WRi",
+    "PA", "H_BACK", "H_EDGE", "viande",
+)  # fmt: skip
+#: Per-digit stems: ``X_STEM_side`` (e.g. ``I_TIP_R``).
+DIGIT_STEMS = ("TIP", "PAD", "NA")
+#: Per-phalanx stems: ``X_STEM_side_n`` (e.g. ``L_KN_L_1``), n = 1 proximal .. 3 distal.
+PHALANX_STEMS = ("KN", "KNi", "BACK", "INT")
+PHALANGES = (1, 2, 3)
+#: Signing-space loci (scores write ``^ssp``).
+LOCI = ("ssp", "Rssp", "Lssp")
+
+
+def azee_site_names() -> tuple[str, ...]:
+    """Every AZee site name of the catalogue, midline first, then lateral, then digits."""
+    names = list(MIDLINE_STEMS)
+    for side in SIDES:
+        names += [f"{stem}_{side}" for stem in LATERAL_STEMS]
+    for side in SIDES:
+        for d in DIGITS:
+            names += [f"{d}_{stem}_{side}" for stem in DIGIT_STEMS]
+            names += [f"{d}_{stem}_{side}_{n}" for stem in PHALANX_STEMS for n in PHALANGES]
+    return tuple(names)
+
+
+def azee_bone_names() -> tuple[str, ...]:
+    """The 44 AZee bones: spine, head, eyes, then each side's arm and digits."""
+    names = ["back_1", "back_2", "neck", "head", "eye_L", "eye_R"]
+    for side in SIDES:
+        names += [f"clav_{side}", f"arm_{side}", f"f_arm_{side}", f"palm_{side}"]
+        names += [f"{d}_{side}_{n}" for d in DIGITS.values() for n in PHALANGES]
+    return tuple(names)
+
+
+def other_side(side: str) -> str:
+    """``"R"`` for ``"L"`` and back."""
+    return {"L": "R", "R": "L"}[side]
+
+
+def resolve_side(side: str, strong_side: str = "R") -> str:
+    """Resolve an AZee side (``s`` strong, ``w`` weak, ``R``, ``L``) to ``R`` or ``L``."""
+    if side == "s":
+        return strong_side
+    if side == "w":
+        return other_side(strong_side)
+    if side in SIDES:
+        return side
+    raise ValueError(f"side {side!r} is not one of 's', 'w', 'R', 'L'")
+
+
+def suggest(name: str, valid: "list[str] | tuple[str, ...]") -> str:
+    """A ``"; did you mean 'X'?"`` suffix for the closest valid name, or ``""``."""
+    match = difflib.get_close_matches(name, list(valid), n=1, cutoff=0.6)
+    return f"; did you mean {match[0]!r}?" if match else ""
+
+
+@dataclasses.dataclass(frozen=True)
+class BoneMap:
+    """One AZee bone on the model: its body and its DIR / NRM unit axes in the body frame."""
+
+    body: str
+    dir: tuple[float, float, float]
+    nrm: tuple[float, float, float]
+
+
+@dataclasses.dataclass(frozen=True)
+class Morph:
+    """A named joint-space change: ``changes[joint]`` at weight 1 [rad or m].
+
+    ``sided`` morphs name joints with a ``{X}`` placeholder for the side (``L`` or ``R``);
+    applying one without a side applies it to both sides.
+    """
+
+    changes: Mapping[str, float]
+    sided: bool
+
+    def joint_changes(self, side: str | None) -> dict[str, float]:
+        """The change per model joint for ``side`` (``"L"``, ``"R"`` or None for both)."""
+        if not self.sided:
+            return dict(self.changes)
+        sides = SIDES if side is None else (side,)
+        return {j.format(X=s): v for s in sides for j, v in self.changes.items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class SignerMap:
+    """How the AZee vocabulary lands on one MJCF signer.
+
+    Attributes:
+      sites: AZee site name -> model site name.
+      bones: AZee bone name -> :class:`BoneMap`.
+      loci: locus name (``ssp``) -> model site name.
+      morphs: morph id -> :class:`Morph`.
+      tracks: articulator track -> model joint names it owns (used by the scheduler).
+    """
+
+    sites: Mapping[str, str]
+    bones: Mapping[str, BoneMap]
+    loci: Mapping[str, str]
+    morphs: Mapping[str, Morph]
+    tracks: Mapping[str, tuple[str, ...]]
+
+    def to_json(self) -> dict:
+        """The catalogue as printed by ``azee-mj sites --json``."""
+        return {
+            "sites": dict(self.sites),
+            "bones": {
+                k: {"body": b.body, "dir": list(b.dir), "nrm": list(b.nrm)}
+                for k, b in self.bones.items()
+            },
+            "loci": dict(self.loci),
+            "morphs": list(self.morphs),
+        }
+
+    def renamed(self, rename_site=None, rename_body=None, rename_joint=None) -> "SignerMap":
+        """A copy for a model whose names differ by the given functions (str -> str)."""
+        rs = rename_site or (lambda s: s)
+        rb = rename_body or (lambda s: s)
+        rj = rename_joint or (lambda s: s)
+        return SignerMap(
+            sites=_frozen({k: rs(v) for k, v in self.sites.items()}),
+            bones=_frozen(
+                {k: dataclasses.replace(b, body=rb(b.body)) for k, b in self.bones.items()}
+            ),
+            loci=_frozen({k: rs(v) for k, v in self.loci.items()}),
+            morphs=_frozen(
+                {
+                    k: Morph(_frozen({_rename_templ(j, rj): v for j, v in m.changes.items()}),
+                             m.sided)
+                    for k, m in self.morphs.items()
+                }
+            ),
+            tracks=_frozen({k: tuple(rj(j) for j in v) for k, v in self.tracks.items()}),
+        )
+
+
+def _rename_templ(joint: str, rename) -> str:
+    # Keep the {X} placeholder: rename the name as it reads on the right side, then restore.
+    if "{X}" not in joint:
+        return rename(joint)
+    marker = "\x00"
+    return rename(joint.replace("{X}", marker)).replace(marker, "{X}")
+
+
+def _frozen(d: dict) -> Mapping:
+    return MappingProxyType(dict(d))
+
+
+def _unit(v) -> tuple[float, float, float]:
+    a = np.asarray(v, float)
+    a = a / np.linalg.norm(a)
+    return tuple(round(float(x), 6) for x in a)
+
+
+def _mirror(v) -> tuple[float, float, float]:
+    """Mirror a (polar) vector across the sagittal plane y = 0."""
+    return (v[0], -v[1], v[2])
+
+
+# ---------------------------------------------------------------------------------------
+# The bundled signer (azee_mj/mjcf/signer.xml). Every body frame is aligned with the world
+# at qpos0, so DIR / NRM below are also the world directions at the rest pose. Right-side
+# vectors are given; the left side mirrors them (y -> -y).
+# ---------------------------------------------------------------------------------------
+
+#: Right-hand thumb axis and pad normal at qpos0 (thumb down and forward, pad toward the
+#: index finger side of the palm).
+THUMB_DIR_R = _unit((0.45, 0.30, -0.84))
+THUMB_NRM_R = _unit(np.cross(np.cross(THUMB_DIR_R, (-0.45, 0.89, 0.0)), THUMB_DIR_R))
+
+_UP, _DOWN, _FWD = (0.0, 0.0, 1.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0)
+_PALMAR_R = (0.0, 1.0, 0.0)  # the right palm faces the body's midline at rest
+
+#: Right clavicle: sternoclavicular joint to shoulder joint centre (body origins in the XML).
+CLAV_R_ORIGIN = (0.045, -0.025, 0.475)
+ARM_R_ORIGIN = (-0.005, -0.18, 0.48)
+
+
+def _bundled_bones() -> dict[str, BoneMap]:
+    bones = {
+        "back_1": BoneMap("back_1", _UP, _FWD),
+        "back_2": BoneMap("back_2", _UP, _FWD),
+        "neck": BoneMap("neck", _UP, _FWD),
+        "head": BoneMap("head", _UP, _FWD),
+        "eye_L": BoneMap("eye_L", _FWD, _UP),
+        "eye_R": BoneMap("eye_R", _FWD, _UP),
+    }
+    clav_dir = _unit(np.subtract(ARM_R_ORIGIN, CLAV_R_ORIGIN))
+    right = {
+        "clav": (clav_dir, _FWD),
+        "arm": (_DOWN, _FWD),
+        "f_arm": (_DOWN, _PALMAR_R),
+        "palm": (_DOWN, _PALMAR_R),
+    }
+    for f in FINGERS:
+        for n in PHALANGES:
+            right[f"{f}_R_{n}"] = (_DOWN, _PALMAR_R)
+    for n in PHALANGES:
+        right[f"thumb_R_{n}"] = (THUMB_DIR_R, THUMB_NRM_R)
+    for side in SIDES:
+        for key, (d, n) in right.items():
+            name = key.replace("_R_", f"_{side}_") if "_R_" in key else f"{key}_{side}"
+            if side == "L":
+                d, n = _mirror(d), _mirror(n)
+            bones[name] = BoneMap(name, tuple(d), tuple(n))
+    return {b: bones[b] for b in azee_bone_names()}
+
+
+def _bundled_tracks() -> dict[str, tuple[str, ...]]:
+    tracks: dict[str, list[str]] = {
+        "spine": [f"{b}_{m}" for b in ("back_1", "back_2") for m in ("flex", "lat", "rot")],
+        "head": [f"{b}_{m}" for b in ("neck", "head") for m in ("flex", "lat", "rot")],
+        "eyes": [f"eye_{s}_{m}" for s in SIDES for m in ("yaw", "pitch")],
+        "face": ["jaw_open"]
+        + [f"lid_{s}_close" for s in SIDES]
+        + [f"brow_{s}_{m}" for s in SIDES for m in ("raise", "knit")]
+        + [f"mouth_{s}_up" for s in SIDES],
+    }
+    for s in SIDES:
+        tracks[f"arm_{s}"] = [
+            f"clav_{s}_elev", f"clav_{s}_prot",
+            f"arm_{s}_flex", f"arm_{s}_abd", f"arm_{s}_rot",
+            f"f_arm_{s}_flex", f"f_arm_{s}_pron",
+            f"palm_{s}_flex", f"palm_{s}_dev",
+        ]  # fmt: skip
+        hand = [f"thumb_{s}_1_flex", f"thumb_{s}_1_abd", f"thumb_{s}_2_flex", f"thumb_{s}_3_flex"]
+        for f in FINGERS:
+            hand += [f"{f}_{s}_1_flex", f"{f}_{s}_1_spread", f"{f}_{s}_2_flex", f"{f}_{s}_3_flex"]
+        tracks[f"hand_{s}"] = hand
+    return {k: tuple(v) for k, v in tracks.items()}
+
+
+def _finger_joints(fingers=FINGERS) -> list[str]:
+    return [f"{f}_{{X}}_{n}_flex" for f in fingers for n in PHALANGES]
+
+
+def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
+    """Morph id -> (joint change at weight 1 [rad / m], sided)."""
+    m: dict[str, tuple[dict[str, float], bool]] = {}
+    for f in FINGERS:
+        m[f"{f}_bend"] = ({f"{f}_{{X}}_1_flex": 1.45}, True)
+        m[f"{f}_hook"] = ({f"{f}_{{X}}_2_flex": 1.5, f"{f}_{{X}}_3_flex": 1.2}, True)
+    m["thumb_bend"] = ({"thumb_{X}_2_flex": 0.9, "thumb_{X}_3_flex": 0.6}, True)
+    m["thumb_hook"] = ({"thumb_{X}_3_flex": 1.2}, True)
+    m["thumb_opposed"] = ({"thumb_{X}_1_flex": 0.5, "thumb_{X}_1_abd": 0.9}, True)
+    m["thumb_spread"] = ({"thumb_{X}_1_flex": -0.4, "thumb_{X}_1_abd": 0.2}, True)
+    m["thumb_extended"] = (
+        {"thumb_{X}_1_flex": -0.3, "thumb_{X}_1_abd": 0.6, "thumb_{X}_2_flex": 0.0,
+         "thumb_{X}_3_flex": 0.0},
+        True,
+    )  # fmt: skip
+    m["fingers_spread"] = (
+        {"index_{X}_1_spread": 0.3, "middle_{X}_1_spread": 0.0, "ring_{X}_1_spread": -0.2,
+         "little_{X}_1_spread": -0.4},
+        True,
+    )  # fmt: skip
+    fist = {j: v for f in FINGERS for j, v in
+            ((f"{f}_{{X}}_1_flex", 1.5), (f"{f}_{{X}}_2_flex", 1.65), (f"{f}_{{X}}_3_flex", 1.0))}
+    fist.update({"thumb_{X}_1_flex": 0.45, "thumb_{X}_1_abd": 0.3,
+                 "thumb_{X}_2_flex": 0.8, "thumb_{X}_3_flex": 0.5})  # fmt: skip
+    m["fist"] = (fist, True)
+    flat = {j: 0.0 for j in _finger_joints()}
+    flat.update({f"{f}_{{X}}_1_spread": 0.0 for f in FINGERS})
+    flat.update({"thumb_{X}_1_flex": 0.2, "thumb_{X}_1_abd": 0.1,
+                 "thumb_{X}_2_flex": 0.0, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+    m["flat"] = (flat, True)
+    m["shoulder_raise"] = ({"clav_{X}_elev": 0.45}, True)
+    m["shoulder_shrug"] = ({"clav_{X}_elev": 0.35, "clav_{X}_prot": 0.15}, True)
+    m["spine_extended"] = ({"back_1_flex": -0.15, "back_2_flex": -0.15}, False)
+    m["blink"] = ({"lid_{X}_close": 1.0}, True)
+    m["eyes_wide"] = ({"lid_{X}_close": -0.35}, True)
+    m["brows_raise"] = ({"brow_{X}_raise": 0.008}, True)
+    m["brows_frown"] = ({"brow_{X}_raise": -0.004, "brow_{X}_knit": 0.005}, True)
+    m["jaw_open"] = ({"jaw_open": 0.3}, False)
+    m["smile"] = ({"mouth_{X}_up": 0.006}, True)
+    m["mouth_down"] = ({"mouth_{X}_up": -0.006}, True)
+    return m
+
+
+def _bundled_map() -> SignerMap:
+    sites = {name: name for name in azee_site_names()}
+    morphs = {k: Morph(_frozen(ch), sided) for k, (ch, sided) in _bundled_morphs().items()}
+    return SignerMap(
+        sites=_frozen(sites),
+        bones=_frozen(_bundled_bones()),
+        loci=_frozen({name: name for name in LOCI}),
+        morphs=_frozen(morphs),
+        tracks=_frozen(_bundled_tracks()),
+    )
+
+
+#: The map of the bundled signer ``azee_mj/mjcf/signer.xml``.
+DEFAULT_MAP = _bundled_map()

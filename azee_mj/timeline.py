@@ -1,0 +1,1 @@
+"""Scheduling blocks per articulator track, interpolation between postures, and rollout."""

@@ -1,0 +1,1 @@
+"""MuJoCo viewer preview and offscreen rendering of rollouts."""

@@ -1,0 +1,127 @@
+"""Pose checking: penetrating geom pairs, joint-range violations and constraint residuals.
+
+Works on one posture or on every frame of a rollout. Thresholds: a penetration deeper than
+``penetration_limit`` [m] or a joint beyond its range by more than ``range_tol`` [rad or m]
+is a finding.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from azee_mj.ik import PENETRATION_LIMIT
+
+
+@dataclasses.dataclass(frozen=True)
+class Penetration:
+    """Two geoms interpenetrating by ``depth`` [m] at frame ``frame``."""
+
+    frame: int
+    geom1: str
+    geom2: str
+    depth: float
+
+
+@dataclasses.dataclass(frozen=True)
+class RangeViolation:
+    """Joint ``joint`` outside its range by ``excess`` [rad or m] at frame ``frame``."""
+
+    frame: int
+    joint: str
+    value: float
+    excess: float
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseReport:
+    """Findings over ``frames`` postures; ``clean`` when there are none.
+
+    ``max_depth`` (frames,) is the deepest penetration of each frame [m], counting every pair
+    (also those under the limit).
+    """
+
+    frames: int
+    penetrations: tuple[Penetration, ...]
+    range_violations: tuple[RangeViolation, ...]
+    max_depth: np.ndarray
+
+    @property
+    def clean(self) -> bool:
+        return not self.penetrations and not self.range_violations
+
+
+def _name(m: mujoco.MjModel, gid: int) -> str:
+    name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, gid)
+    if name:
+        return name
+    body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[gid]))
+    return f"{body}/geom{gid}"
+
+
+def check_poses(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    *,
+    penetration_limit: float = PENETRATION_LIMIT,
+    range_tol: float = 1e-6,
+    allowed: "frozenset[tuple[str, str]] | dict[int, frozenset]" = frozenset(),
+) -> PoseReport:
+    """Check postures ``qpos`` (nq,) or (T, nq) of ``model``.
+
+    ``allowed`` holds body-name pairs (either order) whose contact is wanted (a contact
+    constraint brings them together), or a dict frame -> such pairs; their penetration is
+    not a finding.
+    """
+    q = np.atleast_2d(np.asarray(qpos, float))
+    if q.shape[1] != model.nq:
+        raise ValueError(f"qpos has {q.shape[1]} columns; the model has nq={model.nq}")
+    d = mujoco.MjData(model)
+    lo = np.where(model.jnt_limited, model.jnt_range[:, 0], -np.inf)
+    hi = np.where(model.jnt_limited, model.jnt_range[:, 1], np.inf)
+    adr = model.jnt_qposadr
+    body = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(model.nbody)]
+    pens: list[Penetration] = []
+    viol: list[RangeViolation] = []
+    max_depth = np.zeros(len(q))
+    for f, qf in enumerate(q):
+        vals = qf[adr]
+        excess = np.maximum(lo - vals, vals - hi)
+        for j in np.flatnonzero(excess > range_tol):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, int(j))
+            viol.append(RangeViolation(f, name, float(vals[j]), float(excess[j])))
+        d.qpos[:] = qf
+        mujoco.mj_kinematics(model, d)
+        mujoco.mj_collision(model, d)
+        ok = allowed.get(f, frozenset()) if isinstance(allowed, dict) else allowed
+        for i in range(d.ncon):
+            c = d.contact[i]
+            depth = -float(c.dist)
+            if depth <= 0:
+                continue
+            max_depth[f] = max(max_depth[f], depth)
+            b1, b2 = body[model.geom_bodyid[c.geom1]], body[model.geom_bodyid[c.geom2]]
+            if depth > penetration_limit and (b1, b2) not in ok and (b2, b1) not in ok:
+                pens.append(Penetration(f, _name(model, c.geom1), _name(model, c.geom2), depth))
+    return PoseReport(len(q), tuple(pens), tuple(viol), max_depth)
+
+
+def summary(report: PoseReport, fps: float | None = None) -> str:
+    """A readable multi-line summary of ``report``."""
+    lines = [f"{report.frames} frame(s) checked"]
+    when = (lambda f: f"t={f / fps:.3f}s") if fps else (lambda f: f"frame {f}")
+    worst = float(report.max_depth.max(initial=0.0))
+    lines.append(f"deepest contact: {worst * 1000:.2f} mm")
+    if report.penetrations:
+        lines.append(f"{len(report.penetrations)} penetration(s) over the limit, e.g.:")
+        for p in sorted(report.penetrations, key=lambda p: -p.depth)[:5]:
+            lines.append(f"  {when(p.frame)}: {p.geom1} / {p.geom2} {p.depth * 1000:.2f} mm")
+    if report.range_violations:
+        lines.append(f"{len(report.range_violations)} joint-range violation(s), e.g.:")
+        for v in sorted(report.range_violations, key=lambda v: -v.excess)[:5]:
+            lines.append(f"  {when(v.frame)}: {v.joint} = {v.value:.4f}, out by {v.excess:.4f}")
+    if report.clean:
+        lines.append("clean: no penetration over the limit, every joint inside its range")
+    return "\n".join(lines)

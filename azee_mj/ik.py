@@ -338,6 +338,10 @@ class IKResult:
 # The solver
 # ---------------------------------------------------------------------------------------
 
+#: Largest change of one joint in one iteration [rad or m] (a trust region).
+MAX_STEP = 0.4
+#: Weight of the natural-posture rows (per radian; a constraint row is 1 at its tolerance).
+POSTURE = 0.3
 #: Penetration depth [m] at which a collision row reaches 1 (its "tolerance").
 COLLISION_TOL = 1e-4
 #: Depth [m] allowed between two bodies that a contact constraint brings together.
@@ -547,8 +551,13 @@ class Solver:
         attempt = 0
         starts = [q_start]
         while True:
-            q, cost, ok, n_it = self._lm(starts[-1], cons, joined, free, history)
+            # First with the natural-posture preference, then without it, so that it picks
+            # among the solutions but never biases the constraints.
+            q, cost, ok, n_it = self._lm(starts[-1], cons, joined, free, history, POSTURE)
             iters += n_it
+            if not ok:
+                q, cost, ok, n_it = self._lm(q, cons, joined, free, history)
+                iters += n_it
             if best is None or cost < best[1]:
                 best = (q, cost)
             if ok or attempt >= self.restarts:
@@ -565,23 +574,30 @@ class Solver:
         )  # fmt: skip
 
     def _restart_point(self, attempt, q_start, q_best, free):
-        q = (self.natural if attempt == 1 else q_best).copy()
-        if attempt > 1:
-            span = np.minimum(self.upper - self.lower, 2.0)[free]
-            q[free] += self._rng.uniform(-0.25, 0.25, free.size) * span
+        """Attempt 1 starts from the natural posture, later ones from random postures
+        halfway between it and a uniform sample of the joint ranges."""
+        q = self.natural.copy()
+        if attempt > 1 or np.allclose(q[free], q_start[free]):
+            lo = np.maximum(self.lower[free], -np.pi)
+            hi = np.minimum(self.upper[free], np.pi)
+            q[free] = 0.5 * (q[free] + self._rng.uniform(lo, hi))
         untouched = np.setdiff1d(np.arange(self.model.nv), free)
         q[untouched] = q_start[untouched]
         return np.clip(q, self.lower, self.upper)
 
-    def _lm(self, q, cons, joined, free, history, stop=0.05):
-        """One Levenberg-Marquardt attempt. Returns (q, cost, done, iterations)."""
+    def _lm(self, q, cons, joined, free, history, posture=0.0, stop=0.05):
+        """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
+        ``posture * (q - natural)`` weighted per dof. Returns (q, cost, done, iterations),
+        ``done`` when every constraint row norm is under ``stop`` (its tolerance fraction)."""
         lo, hi = self.lower[free], self.upper[free]
         w = self.dof_weight[free]
         nat = self.natural[free]
         q = q.copy()
         r, J, norms, depth = self._evaluate(q, cons, joined, free)
         cost = float(r @ r)
-        mu = 1e-2
+        if posture:
+            cost += posture**2 * float(w @ (q[free] - nat) ** 2)
+        mu = 1e-3
         n = free.size
         res = np.zeros(n)
         R = np.zeros((n, n + 7))
@@ -590,23 +606,29 @@ class Solver:
             if max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL:
                 return q, cost, True, it - 1
             H = J.T @ J
-            H[np.diag_indices(n)] += mu * w + 1e-9
-            # Damp toward the natural posture: in the null space of the rows, that is where
-            # the step goes; the pull vanishes as mu shrinks near a solution.
-            g = J.T @ r - mu * w * np.clip(nat - q[free], -0.2, 0.2)
+            g = J.T @ r
+            if posture:
+                # The mild preference for the natural posture: rows posture * (q - natural).
+                H[np.diag_indices(n)] += posture**2 * w
+                g += posture**2 * w * (q[free] - nat)
+            H[np.diag_indices(n)] += mu * (np.trace(H) / n + 1.0) * w
             res[:] = 0.0
-            mujoco.mju_boxQP(res, R, None, H, g, lo - q[free], hi - q[free])
+            lo_step = np.maximum(lo - q[free], -MAX_STEP)
+            hi_step = np.minimum(hi - q[free], MAX_STEP)
+            mujoco.mju_boxQP(res, R, None, H, g, lo_step, hi_step)
             q_new = q.copy()
             q_new[free] = np.clip(q[free] + res, lo, hi)
             r_new, J_new, norms_new, depth_new = self._evaluate(q_new, cons, joined, free)
             cost_new = float(r_new @ r_new)
+            if posture:
+                cost_new += posture**2 * float(w @ (q_new[free] - nat) ** 2)
             if cost_new < cost:
                 q, r, J, norms, depth, cost = q_new, r_new, J_new, norms_new, depth_new, cost_new
                 mu = max(mu * 0.3, 1e-6)
             else:
                 mu *= 5.0
             history.append(cost)
-            if mu > 1e6 or float(res @ res) < 1e-20:
+            if mu > 1e3 or float(res @ res) < 1e-20:
                 break
         done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
         return q, cost, done, it

@@ -61,7 +61,6 @@ from azee_mj.sites import (
     DIGITS,
     LATERAL_STEMS,
     MIDLINE_STEMS,
-    PHALANGES,
     PHALANX_STEMS,
     BoneMap,
     SignerMap,
@@ -601,7 +600,9 @@ class Score:
 # ---------------------------------------------------------------------------------------
 
 
-def load_score(source: str | Path | Mapping[str, Any], signer_map: SignerMap = DEFAULT_MAP) -> Score:
+def load_score(
+    source: str | Path | Mapping[str, Any], signer_map: SignerMap = DEFAULT_MAP
+) -> Score:
     """Read, validate and resolve a score.
 
     Args:
@@ -790,9 +791,13 @@ class _Loc:
     #: fields not named in messages (a constraint's subject: its ``site`` / ``bone``)
     unnamed: frozenset[str] = frozenset()
 
-    def fail(self, what: str, valid: str = "", field: str = "") -> ScoreError:
+    def fail(
+        self, what: str, valid: str = "", field: str = "", show_field: bool = True
+    ) -> ScoreError:
+        """The error; ``field`` is named in the message unless ``show_field`` is false (the
+        message then names it itself) or it is one of ``unnamed``."""
         parts = [self.path or "score", self.where]
-        if field and field not in self.unnamed:
+        if field and show_field and field not in self.unnamed:
             parts.append(f"field '{field}'")
         parts.append(what)
         message = ": ".join(p for p in parts if p)
@@ -815,9 +820,12 @@ class _Loader:
         required: tuple[str, ...],
         optional: tuple[str, ...],
         what: str,
+        order: tuple[str, ...] = (),
+        prefix: str = "",
     ) -> Mapping[str, Any]:
-        """Check keys (x-* allowed); return the x-* annotations."""
-        valid = required + optional
+        """Check keys (x-* allowed); return the x-* annotations. ``order`` lists the valid
+        keys in the order messages show them (default: required, then optional)."""
+        valid = order or required + optional
         for key in obj:
             if isinstance(key, str) and key.startswith("x-"):
                 continue
@@ -827,12 +835,16 @@ class _Loader:
                     f"unknown key '{key}'",
                     f"valid keys{for_what} are {', '.join(valid)} (and x-* annotations)"
                     + suggest(str(key), valid),
+                    field=f"{prefix}{key}",
+                    show_field=False,
                 )
         for key in required:
             if key not in obj:
                 raise loc.fail(
                     f"missing field '{key}'",
                     f"{what or 'a score'} needs {', '.join(required)}",
+                    field=f"{prefix}{key}",
+                    show_field=False,
                 )
         return _freeze({k: v for k, v in obj.items() if isinstance(k, str) and k.startswith("x-")})
 
@@ -867,7 +879,7 @@ class _Loader:
         loc = _Loc("")
         if not isinstance(data, Mapping):
             raise loc.fail(f"expected a JSON object at the top level, got {_got(data)}")
-        annotations = self.keys(loc, data, _TOP_REQUIRED, ("strong_side",), "")
+        annotations = self.keys(loc, data, _TOP_REQUIRED, ("strong_side",), "", _TOP_KEYS)
         fmt = data["format"]
         if fmt != FORMAT:
             raise loc.fail(f'expected "{FORMAT}", got {_got(fmt)}', field="format")
@@ -882,10 +894,7 @@ class _Loader:
             )
         strong = data.get("strong_side", "R")
         if strong not in ("R", "L"):
-            raise loc.fail(
-                f"unknown strong side {_got(strong)}", 'valid values are "R", "L"',
-                field="strong_side",
-            )  # fmt: skip
+            raise loc.fail(f'expected "R" or "L", got {_got(strong)}', field="strong_side")
         self.strong = strong
         root = self.block(data["root"], _Loc("", "root block"), "", 0.0, None)
         if root.kind is BlockKind.HOLD:
@@ -911,7 +920,10 @@ class _Loader:
         if not isinstance(obj, Mapping):
             raise pre.fail(f"expected a block (a JSON object), got {_got(obj)}")
         if "name" not in obj:
-            raise pre.fail("missing field 'name'", "a block needs name, kind, start, end")
+            raise pre.fail(
+                "missing field 'name'", "a block needs name, kind, start, end",
+                field="name", show_field=False,
+            )  # fmt: skip
         name = self.string(pre, "name", obj["name"])
         if not name:
             raise pre.fail("a block name cannot be empty", field="name")
@@ -925,8 +937,9 @@ class _Loader:
         loc = _Loc(path)
         if "kind" not in obj:
             raise loc.fail(
-                "missing field 'kind'", "a block needs name, kind, start, end"
-            )
+                "missing field 'kind'", "a block needs name, kind, start, end",
+                field="kind", show_field=False,
+            )  # fmt: skip
         kind_s = self.string(loc, "kind", obj["kind"])
         kinds = [k.value for k in BlockKind]
         if kind_s not in kinds:
@@ -948,7 +961,10 @@ class _Loader:
         if parent_dur is None:
             abs_start, abs_end = 0.0, end - start
         else:
-            inside = f"a child's times are relative to its parent's start and lie within [0, {_num(parent_dur)}]"
+            inside = (
+                "a child's times are relative to its parent's start and lie within "
+                f"[0, {_num(parent_dur)}]"
+            )
             if start < -TIME_SLACK:
                 raise loc.fail(
                     f"{_got(obj['start'])} is before the start of its parent {parent_path}",
@@ -984,7 +1000,7 @@ class _Loader:
         )
 
     def children(self, loc: _Loc, items: Any, abs_start: float, dur: float) -> tuple[Block, ...]:
-        if not isinstance(items, list):
+        if not isinstance(items, (list, tuple)):
             raise loc.fail(f"expected a list of blocks, got {_got(items)}", field="children")
         blocks: list[Block] = []
         seen: dict[str, int] = {}
@@ -1035,7 +1051,7 @@ class _Loader:
     # -- constraints ---------------------------------------------------------------------
 
     def constraints(self, loc: _Loc, items: Any) -> tuple[Constraint, ...]:
-        if not isinstance(items, list):
+        if not isinstance(items, (list, tuple)):
             raise loc.fail(
                 f"expected a list of constraints, got {_got(items)}", field="constraints"
             )
@@ -1047,7 +1063,9 @@ class _Loader:
             raise pre.fail(f"expected a constraint (a JSON object), got {_got(obj)}")
         types = ", ".join(_CONSTRAINT_TYPES)
         if "type" not in obj:
-            raise pre.fail("missing field 'type'", f"valid types are {types}")
+            raise pre.fail(
+                "missing field 'type'", f"valid types are {types}", field="type", show_field=False
+            )
         ctype = self.string(pre, "type", obj["type"])
         if ctype not in _CONSTRAINT_TYPES:
             raise pre.fail(
@@ -1074,8 +1092,8 @@ class _Loader:
             )
             return Orient(
                 bone=self.bone(loc, "bone", obj["bone"]),
-                axis=self.enum(loc, "axis", obj["axis"], Axis, "axes"),
-                rel=self.enum(loc, "rel", obj["rel"], Rel, "relations"),
+                axis=self.enum(loc, "axis", obj["axis"], Axis, "axis", "axes"),
+                rel=self.enum(loc, "rel", obj["rel"], Rel, "relation", "relations"),
                 vector=self.direction(loc, "vector", obj["vector"]),
                 tol=math.radians(tol_deg),
                 **common,
@@ -1086,12 +1104,14 @@ class _Loader:
             return Look(at=self.point(loc, "at", obj["at"]), **common)
         return self.trill(loc, obj, common)
 
-    def enum(self, loc: _Loc, field: str, v: Any, cls: type[enum.Enum], plural: str) -> Any:
+    def enum(
+        self, loc: _Loc, field: str, v: Any, cls: type[enum.Enum], noun: str, plural: str
+    ) -> Any:
         s = self.string(loc, field, v)
         values = [m.value for m in cls]
         if s not in values:
             raise loc.fail(
-                f"unknown {field} '{s}'",
+                f"unknown {noun} '{s}'",
                 f"valid {plural} are {', '.join(values)}" + suggest(s, values),
                 field=field,
             )
@@ -1143,8 +1163,9 @@ class _Loader:
             )
         if amp_key not in obj:
             raise loc.fail(
-                f"missing field '{amp_key}'", f"a {mover} trill needs its amplitude in {unit}"
-            )
+                f"missing field '{amp_key}'", f"a {mover} trill needs its amplitude in {unit}",
+                field=amp_key, show_field=False,
+            )  # fmt: skip
         amplitude = self.positive(loc, amp_key, obj[amp_key])
         if bone is not None:
             amplitude = math.radians(amplitude)
@@ -1167,7 +1188,10 @@ class _Loader:
             )
         ploc = _Loc(loc.path, "field 'path'")
         if "shape" not in obj:
-            raise ploc.fail("missing field 'shape'", f"valid shapes are {', '.join(shapes)}")
+            raise ploc.fail(
+                "missing field 'shape'", f"valid shapes are {', '.join(shapes)}",
+                field="path.shape", show_field=False,
+            )  # fmt: skip
         shape = self.string(loc, "path.shape", obj["shape"])
         if shape not in _SHAPE_KEYS:
             raise loc.fail(
@@ -1176,14 +1200,15 @@ class _Loader:
                 field="path.shape",
             )
         required, optional = _SHAPE_KEYS[shape]
-        self.keys(ploc, obj, required, optional, f"{_ARTICLE[shape]} path")
+        self.keys(ploc, obj, required, optional, f"{_ARTICLE[shape]} path", prefix="path.")
         if shape == "straight":
             return Straight()
         if shape == "arc":
             return Arc(bulge=self.direction(loc, "path.bulge", obj["bulge"]))
+        center = self.point(loc, "path.center", obj["center"])
         turns = self.positive(loc, "path.turns", obj["turns"]) if "turns" in obj else 1.0
         normal = self.direction(loc, "path.normal", obj["normal"]) if "normal" in obj else None
-        return Circle(center=self.point(loc, "path.center", obj["center"]), turns=turns, normal=normal)
+        return Circle(center=center, turns=turns, normal=normal)
 
     # -- references ----------------------------------------------------------------------
 
@@ -1327,7 +1352,7 @@ class _Loader:
 
     # -- expressions ---------------------------------------------------------------------
 
-    def xyz(self, loc: _Loc, field: str, v: list[Any]) -> Vec3:
+    def xyz(self, loc: _Loc, field: str, v: list[Any] | tuple[Any, ...]) -> Vec3:
         if len(v) != 3 or not all(_is_number(x) for x in v):
             raise loc.fail(f"expected 3 numbers [x, y, z], got {_got(v)}", field=field)
         if not all(math.isfinite(x) for x in v):
@@ -1350,7 +1375,8 @@ class _Loader:
         heads = [k for k in obj if k in forms]
         if len(heads) != 1:
             what = (
-                f"{_got(obj)} mixes the forms {_listing(heads, quote=True)}"
+                f"{_got(obj)} mixes the forms "
+                + " and ".join(f"'{h}'" for h in heads)
                 if heads
                 else f"{_got(obj)} is incomplete"
             )
@@ -1371,7 +1397,7 @@ class _Loader:
         return head
 
     def items(self, loc: _Loc, field: str, v: Any, n: int | None, what: str) -> list[Any]:
-        if not isinstance(v, list) or (n is not None and len(v) != n) or not v:
+        if not isinstance(v, (list, tuple)) or (n is not None and len(v) != n) or not v:
             count = f"{n} {what}s" if n is not None else f"a list of one or more {what}s"
             raise loc.fail(f"expected {count}, got {_got(v)}", field=field)
         return v
@@ -1386,7 +1412,7 @@ class _Loader:
                     'use [x, y, z] or {"translate": P, "by": V}',
                     field=field,
                 )
-        if isinstance(v, list):
+        if isinstance(v, (list, tuple)):
             return PLiteral(self.xyz(loc, field, v))
         if isinstance(v, Mapping):
             head = self.form(loc, field, v, _POINT_FORMS, _POINT_DESC)
@@ -1396,7 +1422,9 @@ class _Loader:
                     self.vector(loc, f"{field}.by", v["by"]),
                 )
             p, q = self.items(loc, f"{field}.mid", v["mid"], 2, "point")
-            return PMid(self.point(loc, f"{field}.mid[1]", p), self.point(loc, f"{field}.mid[2]", q))
+            return PMid(
+                self.point(loc, f"{field}.mid[1]", p), self.point(loc, f"{field}.mid[2]", q)
+            )
         raise loc.fail(f"expected {_POINT_DESC}, got {_got(v)}", field=field)
 
     def vector(self, loc: _Loc, field: str, v: Any) -> VectorExpr:
@@ -1424,7 +1452,7 @@ class _Loader:
                 f"valid directions are {', '.join(names)}" + suggest(v, names),
                 field=field,
             )
-        if isinstance(v, list):
+        if isinstance(v, (list, tuple)):
             return VLiteral(self.xyz(loc, field, v))
         if isinstance(v, Mapping):
             head = self.form(loc, field, v, _VECTOR_FORMS, _VECTOR_DESC)
@@ -1434,15 +1462,21 @@ class _Loader:
             if head == "opp":
                 return VOpp(self.vector(loc, sub, v["opp"]))
             if head == "scale":
-                return VScale(self.vector(loc, sub, v["scale"]), self.number(loc, f"{field}.by", v["by"]))
+                return VScale(
+                    self.vector(loc, sub, v["scale"]), self.number(loc, f"{field}.by", v["by"])
+                )
             if head == "add":
                 terms = self.items(loc, sub, v["add"], None, "vector")
-                return VAdd(tuple(self.vector(loc, f"{sub}[{i}]", t) for i, t in enumerate(terms, 1)))
+                return VAdd(
+                    tuple(self.vector(loc, f"{sub}[{i}]", t) for i, t in enumerate(terms, 1))
+                )
             if head == "cross":
                 a, b = self.items(loc, sub, v["cross"], 2, "vector")
                 return VCross(self.vector(loc, f"{sub}[1]", a), self.vector(loc, f"{sub}[2]", b))
             if head == "from":
-                return VFrom(self.point(loc, sub, v["from"]), self.point(loc, f"{field}.to", v["to"]))
+                return VFrom(
+                    self.point(loc, sub, v["from"]), self.point(loc, f"{field}.to", v["to"])
+                )
             inner = self.vector(loc, sub, v["unit"])
             self.nonzero(loc, sub, inner, v["unit"], "cannot normalise the zero vector")
             return VUnit(inner)

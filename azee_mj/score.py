@@ -1,6 +1,6 @@
 """Load and validate an AZee score (``azee-score`` version 1) into immutable records.
 
-The input contract is ``docs``' score format (``/work/shared/design/score-format.md``):
+The input contract is the project's score-format document (``azee-score`` version 1):
 nested, timed blocks (``sync``, ``cstr``, ``hold``, ``transpath``) whose leaves are
 articulation constraints (``place``, ``orient``, ``morph``, ``look``, ``trill``).
 :func:`load_score` reads a JSON file or an already-parsed dict, checks *everything*, and
@@ -26,8 +26,14 @@ Error messages are one line::
 
     <dotted block path>: <where in the block>: <what is wrong>; <what is valid>
 
-e.g. ``ROOT.K1: constraint 1 (place): field 'site': unknown site 'I_TPI_R'; did you mean
-'I_TIP_R'? (azee-mj sites lists all)``. Errors outside any block start with ``score``.
+e.g. ``ROOT.K1: constraint 1 (place): unknown site 'I_TPI_R'; did you mean 'I_TIP_R'?
+(azee-mj sites lists all)`` or ``ROOT.K1: field 'start': expected a number, got "0.4"``.
+Errors outside any block start with ``score``; a block whose name is not known yet is
+located by its parent and position (``ROOT: child 2: ...``, ``score: root block: ...``).
+Inside a constraint the offending field is named (``field 'at.translate'``), except its
+subject (its ``site`` or ``bone``), which the constraint itself names. ``ScoreError.path``
+is the dotted block path ('' above the root) and ``ScoreError.field`` the offending key
+(dotted inside expressions and transpath paths, e.g. ``at.mid[2]``, ``path.bulge``).
 **Every index in a message is 1-based**: ``constraint 1`` is the first constraint of its
 block, ``child 2`` the second block of a ``children`` list, and ``at.mid[1]`` the first
 item of a list inside an expression. Lists of more than 8 valid names are abbreviated.

@@ -265,6 +265,8 @@ class JointTarget:
     value: float
     tol: float = 0.02
     label: str = ""
+    #: A soft target guides the posture but never blocks convergence (e.g. an interpolation).
+    soft: bool = False
 
     def rows(self, k: _Kin):
         j = k.s.joint_id(self.joint)
@@ -338,6 +340,7 @@ class IKResult:
 # The solver
 # ---------------------------------------------------------------------------------------
 
+MU0, MU_DOWN, MU_UP = 1e-3, 0.3, 5.0
 #: Largest change of one joint in one iteration [rad or m] (a trust region).
 MAX_STEP = 0.4
 #: Weight of the natural-posture rows (per radian; a constraint row is 1 at its tolerance).
@@ -489,19 +492,18 @@ class Solver:
         return pairs
 
     # -- rows ---------------------------------------------------------------------------
-    def _evaluate(self, q, cons, joined, free):
+    def _plan(self, problem: IKProblem) -> "_Plan":
+        return _Plan(self, problem)
+
+    def _evaluate(self, q, plan: "_Plan"):
         """Residual rows (k,), Jacobian (k, len(free)), per-constraint row norms, depth."""
         m, d = self.model, self.data
         d.qpos[:] = q
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
-        k = _Kin(self)
-        rs, js, norms = [], [], []
-        for c in cons:
-            r, J = c.rows(k)
-            rs.append(r)
-            js.append(J[:, free])
-            norms.append(float(np.sqrt(r @ r)))
+        r, J = plan.rows()
+        norms = [float(np.sqrt(r[a:b] @ r[a:b])) for a, b in plan.hard]
+        Jf = J[:, plan.free]
         mujoco.mj_collision(m, d)
         depth = 0.0
         n = d.ncon
@@ -510,26 +512,22 @@ class Solver:
             geom = d.contact.geom[:n]
             b1 = m.geom_bodyid[geom[:, 0]]
             b2 = m.geom_bodyid[geom[:, 1]]
-            floor = np.array(
-                [-CONTACT_ALLOWANCE if (x, y) in joined else 0.0 for x, y in zip(b1, b2)]
-            ) if joined else np.zeros(n)
-            pen = dist - floor
-            hit = np.flatnonzero(pen < 0)
+            floor = plan.floor[b1, b2]
+            hit = np.flatnonzero(dist < floor)
             if hit.size:
-                depth = float(-np.min(np.where(floor == 0, dist, 0.0)))
-                normal = d.contact.frame[:n, :3]
-                pos = d.contact.pos[:n]
-                j1, j2 = np.empty((3, m.nv)), np.empty((3, m.nv))
-                rows = np.empty((hit.size, free.size))
+                own = dist[hit][floor[hit] == 0.0]
+                depth = float(-own.min()) if own.size else 0.0
+                normal = d.contact.frame[hit, :3]
+                pos = d.contact.pos[hit]
+                j1, j2 = plan.cbuf1, plan.cbuf2
+                rows = np.empty((hit.size, plan.free.size))
                 for r_i, i in enumerate(hit):
-                    mujoco.mj_jac(m, d, j1, None, pos[i], b1[i])
-                    mujoco.mj_jac(m, d, j2, None, pos[i], b2[i])
-                    rows[r_i] = normal[i] @ (j2[:, free] - j1[:, free])
-                rs.append(pen[hit] / COLLISION_TOL)
-                js.append(rows / COLLISION_TOL)
-        depth = max(depth, 0.0)
-        return np.concatenate(rs) if rs else np.zeros(0), np.vstack(js) if js else np.zeros(
-            (0, free.size)), norms, depth
+                    mujoco.mj_jac(m, d, j1, None, pos[r_i], b1[i])
+                    mujoco.mj_jac(m, d, j2, None, pos[r_i], b2[i])
+                    rows[r_i] = normal[r_i] @ (j2 - j1)[:, plan.free]
+                r = np.concatenate([r, (dist[hit] - floor[hit]) / COLLISION_TOL])
+                Jf = np.vstack([Jf, rows / COLLISION_TOL])
+        return r, Jf, norms, max(depth, 0.0)
 
     # -- solve --------------------------------------------------------------------------
     def solve(self, problem: IKProblem, q0: np.ndarray | None = None) -> IKResult:
@@ -543,8 +541,8 @@ class Solver:
         q_start = np.clip(self.natural if q0 is None else np.asarray(q0, float),
                           self.lower, self.upper)  # fmt: skip
         cons = problem.constraints
-        free = self.free_dofs(problem)
-        joined = self._joined_bodies(problem)
+        plan = self._plan(problem)
+        free = plan.free
         best = None
         history: list[float] = []
         iters = 0
@@ -553,10 +551,10 @@ class Solver:
         while True:
             # First with the natural-posture preference, then without it, so that it picks
             # among the solutions but never biases the constraints.
-            q, cost, ok, n_it = self._lm(starts[-1], cons, joined, free, history, POSTURE)
+            q, cost, ok, n_it = self._lm(starts[-1], plan, history, POSTURE)
             iters += n_it
             if not ok:
-                q, cost, ok, n_it = self._lm(q, cons, joined, free, history)
+                q, cost, ok, n_it = self._lm(q, plan, history)
                 iters += n_it
             if best is None or cost < best[1]:
                 best = (q, cost)
@@ -565,8 +563,9 @@ class Solver:
             attempt += 1
             starts.append(self._restart_point(attempt, q_start, best[0], free))
         q = best[0]
-        residuals, depth = self.report(cons, q, joined)
-        converged = all(r.ok for r in residuals) and depth <= PENETRATION_LIMIT
+        residuals, depth = plan.report(q)
+        hard = [r for r, c in zip(residuals, cons) if not getattr(c, "soft", False)]
+        converged = all(r.ok for r in hard) and depth <= PENETRATION_LIMIT
         return IKResult(
             qpos=q, converged=converged, residuals=residuals, penetration=depth,
             iterations=iters, restarts=attempt, time=time.perf_counter() - t0,
@@ -585,19 +584,22 @@ class Solver:
         q[untouched] = q_start[untouched]
         return np.clip(q, self.lower, self.upper)
 
-    def _lm(self, q, cons, joined, free, history, posture=0.0, stop=0.05):
+    def _lm(self, q, plan, history, posture=0.0, stop=0.05):
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
         ``posture * (q - natural)`` weighted per dof. Returns (q, cost, done, iterations),
         ``done`` when every constraint row norm is under ``stop`` (its tolerance fraction)."""
+        free = plan.free
         lo, hi = self.lower[free], self.upper[free]
         w = self.dof_weight[free]
         nat = self.natural[free]
         q = q.copy()
-        r, J, norms, depth = self._evaluate(q, cons, joined, free)
+        r, J, norms, depth = self._evaluate(q, plan)
         cost = float(r @ r)
         if posture:
             cost += posture**2 * float(w @ (q[free] - nat) ** 2)
-        mu = 1e-3
+        mu, nu = MU0, 2.0
+        stalls = 0
+        diag = np.diag_indices(free.size)
         n = free.size
         res = np.zeros(n)
         R = np.zeros((n, n + 7))
@@ -609,25 +611,37 @@ class Solver:
             g = J.T @ r
             if posture:
                 # The mild preference for the natural posture: rows posture * (q - natural).
-                H[np.diag_indices(n)] += posture**2 * w
+                H[diag] += posture**2 * w
                 g += posture**2 * w * (q[free] - nat)
-            H[np.diag_indices(n)] += mu * (np.trace(H) / n + 1.0) * w
+            Hd = H.copy()
+            Hd[diag] += mu * (np.trace(H) / n + 1.0) * w
             res[:] = 0.0
             lo_step = np.maximum(lo - q[free], -MAX_STEP)
             hi_step = np.minimum(hi - q[free], MAX_STEP)
-            mujoco.mju_boxQP(res, R, None, H, g, lo_step, hi_step)
+            mujoco.mju_boxQP(res, R, None, Hd, g, lo_step, hi_step)
             q_new = q.copy()
             q_new[free] = np.clip(q[free] + res, lo, hi)
-            r_new, J_new, norms_new, depth_new = self._evaluate(q_new, cons, joined, free)
+            r_new, J_new, norms_new, depth_new = self._evaluate(q_new, plan)
             cost_new = float(r_new @ r_new)
             if posture:
                 cost_new += posture**2 * float(w @ (q_new[free] - nat) ** 2)
             if cost_new < cost:
+                gain = (cost - cost_new) / cost
+                # Nielsen's update from the ratio of actual to predicted decrease.
+                predicted = -(2.0 * g @ res + res @ H @ res)
+                rho = (cost - cost_new) / predicted if predicted > 0 else 0.0
                 q, r, J, norms, depth, cost = q_new, r_new, J_new, norms_new, depth_new, cost_new
-                mu = max(mu * 0.3, 1e-6)
+                mu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-7)
+                nu = 2.0
+                history.append(cost)
+                if gain < (0.02 if posture else 1e-3):
+                    stalls += 1
+                    if posture or stalls >= 3:
+                        break  # preference done (polish without it), or stuck in a minimum
             else:
-                mu *= 5.0
-            history.append(cost)
+                mu *= nu
+                nu *= 2.0
+                history.append(cost)
             if mu > 1e3 or float(res @ res) < 1e-20:
                 break
         done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
@@ -710,3 +724,138 @@ def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) 
         keep = np.array([(x, y) not in allowed for x, y in b])
         dist = dist[keep]
     return float(max(0.0, -dist.min())) if dist.size else 0.0
+
+
+class _Plan:
+    """A problem compiled for one solver: ids resolved, row blocks laid out, buffers made.
+
+    Common constraint forms (a placement at a fixed point or on another site, an
+    orientation toward a fixed vector, a joint target) write their rows straight from
+    ``mj_jacSite`` / ``mj_jacBody``; other forms go through the expression evaluator.
+    """
+
+    def __init__(self, solver: Solver, problem: IKProblem):
+        m = solver.model
+        self.s, self.m, self.d = solver, m, solver.data
+        self.free = solver.free_dofs(problem)
+        self.joined = solver._joined_bodies(problem)
+        self.floor = np.zeros((m.nbody, m.nbody))
+        for a, b in self.joined:
+            self.floor[a, b] = -CONTACT_ALLOWANCE
+        self.items: list = []
+        self.cons = problem.constraints
+        self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE
+                      for c in problem.constraints if isinstance(c, JointTarget)}  # fmt: skip
+        self.hard: list[tuple[int, int]] = []
+        inv: list[float] = []
+        row = 0
+        for c in problem.constraints:
+            fn, k, scaled = self._compile(c)
+            self.items.append((fn, row, row + k))
+            if not getattr(c, "soft", False):
+                self.hard.append((row, row + k))
+            inv += [1.0 if scaled else 1.0 / c.tol] * k
+            row += k
+        self.inv = np.array(inv)
+        self.J = np.zeros((row, m.nv))
+        self.r = np.zeros(row)
+        self.tmp = np.empty((3, m.nv))
+        self.cbuf1, self.cbuf2 = np.empty((3, m.nv)), np.empty((3, m.nv))
+        for c, (_, a, b) in zip(problem.constraints, self.items):
+            if isinstance(c, JointTarget):
+                self.J[a, m.jnt_dofadr[solver.joint_id(c.joint)]] = 1.0
+
+    def _compile(self, c):
+        """(fn(r_block, J_block), number of rows, rows already scaled by 1/tol)."""
+        s, m, d, tmp = self.s, self.m, self.d, None
+        if isinstance(c, Place) and isinstance(c.target, (Const, SitePos)):
+            sid = s.site_id(c.site)
+            if isinstance(c.target, Const):
+                t = np.asarray(c.target.value, float)
+
+                def place(r, J):
+                    mujoco.mj_jacSite(m, d, J, None, sid)
+                    r[:] = d.site_xpos[sid] - t
+
+                return place, 3, False
+            sid2 = s.site_id(c.target.site)
+
+            def contact(r, J):
+                mujoco.mj_jacSite(m, d, J, None, sid)
+                mujoco.mj_jacSite(m, d, self.tmp, None, sid2)
+                J -= self.tmp
+                r[:] = d.site_xpos[sid] - d.site_xpos[sid2]
+
+            return contact, 3, False
+        if isinstance(c, Orient) and isinstance(c.vector, Const):
+            bid = s.body_id(c.body)
+            local = np.asarray(c.local, float)
+            v = np.asarray(c.vector.value, float)
+            v = v / np.linalg.norm(v) * (-1.0 if c.rel is Rel.OPP else 1.0)
+            perp = c.rel is Rel.PERP
+
+            def orient(r, J):
+                mujoco.mj_jacBody(m, d, None, self.tmp, bid)
+                a = d.xmat[bid].reshape(3, 3) @ local
+                da = _skew(-a) @ self.tmp  # da/dq = -[a]x J_rot
+                if perp:
+                    r[0] = a @ v
+                    J[0] = v @ da
+                else:
+                    r[:] = a - v
+                    J[:] = da
+
+            return orient, 1 if perp else 3, False
+        if isinstance(c, JointTarget):
+            adr = m.jnt_qposadr[s.joint_id(c.joint)]
+            value = c.value
+
+            def joint(r, J):
+                r[0] = d.qpos[adr] - value
+
+            return joint, 1, False
+        k = 6 if isinstance(c, Look) and len(c.eyes) == 2 else (1 if isinstance(c, Orient)
+                                                               and c.rel is Rel.PERP else 3)
+
+        def generic(r, J):
+            rr, jj = c.rows(_Kin(s))
+            r[:] = rr
+            J[:] = jj
+
+        if isinstance(c, Look):
+            k = 3 * len(c.eyes)
+        return generic, k, True
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``."""
+        for fn, a, b in self.items:
+            fn(self.r[a:b], self.J[a:b])
+        return self.r * self.inv, self.J * self.inv[:, None]
+
+    def report(self, q: np.ndarray) -> tuple[tuple[Residual, ...], float]:
+        """Per-constraint residuals in their units and the deepest penetration [m] (outside
+        the allowed contact pairs) of posture ``q``."""
+        m, d = self.m, self.d
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        out = []
+        for c, (fn, a, b) in zip(self.cons, self.items):
+            fn(self.r[a:b], self.J[a:b])
+            r = self.r[a:b]
+            if fn.__name__ == "generic":
+                value = c.residual(_Kin(self.s))
+            elif isinstance(c, Orient):
+                if c.rel is Rel.PERP:
+                    value = float(np.arcsin(min(1.0, abs(r[0]))))
+                else:
+                    value = float(2.0 * np.arcsin(min(1.0, np.sqrt(r @ r) / 2.0)))
+            else:
+                value = float(np.sqrt(r @ r))
+            unit = "rad"
+            if isinstance(c, Place):
+                unit = "m"
+            elif isinstance(c, JointTarget) and self.slide[c.joint]:
+                unit = "m"
+            out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
+        return tuple(out), penetration_depth(m, d, self.joined)

@@ -1,0 +1,121 @@
+"""A fixed, seeded set of reachable keyframes for the bundled signer.
+
+Targets come from forward kinematics of random collision-free postures: 6 to 12 constraints
+each, including perpendicular orientations, two-hand contacts and hand-to-face contacts.
+A contact keyframe is made by first bringing the two sites together from the random posture
+(any posture that meets it proves it reachable), then reading every other target off it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from azee_mj import ik
+from azee_mj.sites import DEFAULT_MAP
+
+ARM = ("clav_{X}_elev", "clav_{X}_prot", "arm_{X}_flex", "arm_{X}_abd", "arm_{X}_rot",
+       "f_arm_{X}_flex", "f_arm_{X}_pron", "palm_{X}_flex", "palm_{X}_dev")
+HAND_SITES = ("I_TIP_{X}", "T_TIP_{X}", "M_TIP_{X}", "PA_{X}", "WR_{X}", "H_BACK_{X}",
+              "L_TIP_{X}", "EL_{X}")
+FACE_SITES = ("CH", "NO", "FH", "CK_{X}", "MO", "TE_{X}", "EAR_{X}")
+OTHER_HAND = ("PA_{X}", "H_BACK_{X}", "I_TIP_{X}", "WR_{X}", "F_ARM_{X}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Keyframe:
+    """A reachable problem and the posture it was read off (``truth``)."""
+
+    kind: str  # "free", "two-hand", "hand-face"
+    problem: ik.IKProblem
+    truth: np.ndarray
+
+
+def _joints(sides=("R", "L")):
+    return tuple(j.format(X=s) for s in sides for j in ARM) + (
+        "back_1_flex", "back_2_flex", "back_2_rot", "neck_flex", "head_rot")
+
+
+def random_posture(solver: ik.Solver, rng: np.random.Generator) -> np.ndarray:
+    """A random collision-free posture: arms anywhere in their ranges (shrunk 10 %)."""
+    m, d = solver.model, mujoco.MjData(solver.model)
+    while True:
+        q = solver.natural.copy()
+        for j in _joints():
+            jid = solver.joint_id(j)
+            lo, hi = m.jnt_range[jid]
+            pad = 0.1 * (hi - lo)
+            if j.startswith(("back", "neck", "head")):
+                pad = 0.35 * (hi - lo)
+            q[m.jnt_qposadr[jid]] = rng.uniform(lo + pad, hi - pad)
+        d.qpos[:] = q
+        if ik.penetration_depth(m, d) <= 0.0:
+            return q
+
+
+def _fk(solver, q):
+    d = solver.data
+    d.qpos[:] = q
+    mujoco.mj_kinematics(solver.model, d)
+    return d
+
+
+def _read_off(solver, q, rng, n_place, n_orient, with_perp=True):
+    """Place and orient constraints read off posture ``q``."""
+    d = _fk(solver, q)
+    cons = []
+    sides = ["R", "L"]
+    for i in range(n_place):
+        side = sides[i % 2]
+        site = rng.choice(HAND_SITES).format(X=side)
+        cons.append(ik.Place(site, ik.Const(tuple(d.site_xpos[solver.site_id(site)])),
+                             label=f"place {site}"))
+    bones = ["palm_{X}", "f_arm_{X}", "index_{X}_3", "arm_{X}"]
+    for i in range(n_orient):
+        side = sides[i % 2]
+        bone = DEFAULT_MAP.bones[rng.choice(bones).format(X=side)]
+        axis = bone.dir if rng.random() < 0.5 else bone.nrm
+        R = d.xmat[solver.body_id(bone.body)].reshape(3, 3)
+        a = R @ np.asarray(axis)
+        if with_perp and i % 3 == 2:
+            v = np.cross(a, rng.normal(size=3))
+            v /= np.linalg.norm(v)
+            cons.append(ik.Orient(bone.body, axis, ik.Rel.PERP, ik.Const(tuple(v)),
+                                  label=f"perp {bone.body}"))
+        elif rng.random() < 0.5:
+            cons.append(ik.Orient(bone.body, axis, ik.Rel.ALONG, ik.Const(tuple(a)),
+                                  label=f"along {bone.body}"))
+        else:
+            cons.append(ik.Orient(bone.body, axis, ik.Rel.OPP, ik.Const(tuple(-a)),
+                                  label=f"opp {bone.body}"))
+    return cons
+
+
+def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None) -> list[Keyframe]:
+    """``n`` reachable keyframes: 1/2 free placements, 1/4 two-hand, 1/4 hand-to-face."""
+    solver = solver or ik.Solver()
+    rng = np.random.default_rng(seed)
+    out: list[Keyframe] = []
+    free = _joints()
+    while len(out) < n:
+        kind = ("free", "free", "two-hand", "hand-face")[len(out) % 4]
+        q = random_posture(solver, rng)
+        contact = []
+        if kind != "free":
+            a = rng.choice(HAND_SITES[:4]).format(X="R")
+            if kind == "two-hand":
+                b = rng.choice(OTHER_HAND).format(X="L")
+            else:
+                b = rng.choice(FACE_SITES).format(X=rng.choice(["R", "L"]))
+            contact = [ik.Place(a, ik.SitePos(b), label=f"contact {a}-{b}")]
+            res = solver.solve(ik.IKProblem(tuple(contact), free), q)
+            if not res.converged:
+                continue
+            q = res.qpos
+        n_cons = int(rng.integers(6, 13)) - len(contact)
+        n_place = max(1, n_cons // 2 - 1)
+        cons = contact + _read_off(solver, q, rng, n_place, n_cons - n_place)
+        out.append(Keyframe(kind, ik.IKProblem(tuple(cons), free), q))
+    return out

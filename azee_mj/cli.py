@@ -65,6 +65,44 @@ def _cmd_check(args) -> int:
     return 0 if ok else 1
 
 
+class _Progress:
+    """A one-line progress bar on a terminal's stderr; silent otherwise."""
+
+    def __init__(self, label: str):
+        self.label, self.on = label, sys.stderr.isatty()
+
+    def __call__(self, fraction: float) -> None:
+        if self.on:
+            n = int(30 * fraction)
+            end = "\n" if fraction >= 1.0 else ""
+            print(f"\r{self.label} [{'#' * n}{'.' * (30 - n)}] {fraction:4.0%}", end=end,
+                  file=sys.stderr, flush=True)  # fmt: skip
+
+
+def _cmd_realize(args) -> int:
+    from azee_mj.export import save_json, save_npz
+    from azee_mj.score import load_score
+    from azee_mj.timeline import realize
+
+    if args.fps <= 0:
+        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    score = load_score(args.score)
+    rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
+    save_npz(args.output, rollout.arrays())
+    if args.report:
+        save_json(args.report, rollout.report())
+    s = rollout.stats
+    bad = [t for t in rollout.traces if not t.ok]
+    print(f"{args.output}: {len(rollout.time)} frames at {args.fps:g} fps, {s.problems} IK "
+          f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
+          f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within tolerance")
+    for t in bad[:5]:
+        scale, unit = (1000.0, "mm") if t.unit == "m" else (180.0 / 3.141592653589793, "deg")
+        print(f"  {t.block} constraint {t.index} ({t.kind}): worst {t.worst * scale:.2f} {unit}"
+              f" (tol {t.tol * scale:.2f} {unit})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from azee_mj import __version__
 
@@ -77,6 +115,15 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sites", help="list the AZee catalogue (sites, bones, loci, morphs)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=_cmd_sites)
+
+    r = sub.add_parser("realize", help="realize a score to a rollout .npz")
+    r.add_argument("score", help="SCORE.json (azee-score version 1)")
+    r.add_argument("-o", "--output", required=True, help="OUT.npz")
+    r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
+    r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
+                   help="blocks per articulator track (default) or the 2018 flattened method")
+    r.add_argument("--report", help="also write residuals and timings to REPORT.json")
+    r.set_defaults(func=_cmd_realize)
 
     c = sub.add_parser("check", help="check a rollout for penetrations and range violations")
     c.add_argument("rollout", help="ROLLOUT.npz written by 'azee-mj realize'")

@@ -267,9 +267,8 @@ class _Compiler:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
         if isinstance(c, sc.Place):
             out = self.site_tracks(self.site(c.site))
-            for ref in sc.referenced_sites(c.at):
-                if not ref.locus:
-                    out |= self.site_tracks(self.site(ref))
+            if isinstance(c.at, sc.PSite) and not c.at.ref.locus:  # a contact: both parts move
+                out |= self.site_tracks(self.site(c.at.ref))
             return out
         if isinstance(c, sc.Orient):
             body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))

@@ -288,8 +288,10 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     )  # fmt: skip
     fist = {j: v for f in FINGERS for j, v in
             ((f"{f}_{{X}}_1_flex", 1.5), (f"{f}_{{X}}_2_flex", 1.65), (f"{f}_{{X}}_3_flex", 1.0))}
-    fist.update({"thumb_{X}_1_flex": 0.45, "thumb_{X}_1_abd": 0.3,
-                 "thumb_{X}_2_flex": 0.8, "thumb_{X}_3_flex": 0.5})  # fmt: skip
+    # thumb curled over the index finger's middle phalanx (no interpenetration in the bundled
+    # signer's collision geometry)
+    fist.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.1,
+                 "thumb_{X}_2_flex": 0.8, "thumb_{X}_3_flex": 1.2})  # fmt: skip
     m["fist"] = (fist, True)
     flat = {j: 0.0 for j in _finger_joints()}
     flat.update({f"{f}_{{X}}_1_spread": 0.0 for f in FINGERS})

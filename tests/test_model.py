@@ -226,7 +226,8 @@ def test_dimensions(model, data):
         for n, frac in zip((1, 2), fr):
             seg = np.linalg.norm(x(f"{f}_R_{n + 1}") - x(f"{f}_R_{n}"))
             assert seg == pytest.approx(frac * 0.184, abs=1e-5)
-    assert np.linalg.norm(_site(data, "T_TIP_R") - x("thumb_R_3")) == pytest.approx(0.158 * 0.184, abs=1e-5)
+    thumb_distal = np.linalg.norm(_site(data, "T_TIP_R") - x("thumb_R_3"))
+    assert thumb_distal == pytest.approx(0.158 * 0.184, abs=1e-5)
 
 
 def _bone_checks(data):
@@ -252,7 +253,8 @@ def _bone_checks(data):
                 bone = f"{digit}_{side}_{n}"
                 nxt = x(f"{digit}_{side}_{n + 1}") if n < 3 else s(f"{letter}_TIP_{side}")
                 out.append((bone, "dir", nxt - x(bone)))
-                out.append((bone, "nrm", s(f"{letter}_KNi_{side}_{n}") - s(f"{letter}_KN_{side}_{n}")))
+                knuckle = s(f"{letter}_KN_{side}_{n}")
+                out.append((bone, "nrm", s(f"{letter}_KNi_{side}_{n}") - knuckle))
     return out
 
 
@@ -290,7 +292,8 @@ def test_head_and_eyes_face_forward(model, data):
 
 
 def _sites_on(model, body):
-    return [model.site(i).name for i in range(model.nsite) if model.site_bodyid[i] == model.body(body).id]
+    bid = model.body(body).id
+    return [model.site(i).name for i in range(model.nsite) if model.site_bodyid[i] == bid]
 
 
 @pytest.mark.parametrize("posture", ["qpos0", "home"])

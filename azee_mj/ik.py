@@ -374,7 +374,7 @@ class Solver:
         *,
         n_targets: int = 16,
         max_iter: int = 60,
-        restarts: int = 2,
+        restarts: int = 3,
         margin: float = 0.004,
         seed: int = 0,
     ):
@@ -504,9 +504,10 @@ class Solver:
         r, J = plan.rows()
         norms = [float(np.sqrt(r[a:b] @ r[a:b])) for a, b in plan.hard]
         Jf = J[:, plan.free]
-        mujoco.mj_collision(m, d)
         depth = 0.0
-        n = d.ncon
+        if plan.collide:
+            mujoco.mj_collision(m, d)
+        n = d.ncon if plan.collide else 0
         if n:
             dist = d.contact.dist[:n]
             geom = d.contact.geom[:n]
@@ -551,6 +552,14 @@ class Solver:
         while True:
             # First with the natural-posture preference, then without it, so that it picks
             # among the solutions but never biases the constraints.
+            if attempt == 1:
+                # Self-collision can trap the iteration in a corner: reach the constraints
+                # with the body transparent, then let the collision rows push parts apart.
+                plan.collide = False
+                q, cost, ok, n_it = self._lm(starts[-1], plan, history, POSTURE)
+                plan.collide = True
+                iters += n_it
+                starts[-1] = q
             q, cost, ok, n_it = self._lm(starts[-1], plan, history, POSTURE)
             iters += n_it
             if not ok:
@@ -573,10 +582,13 @@ class Solver:
         )  # fmt: skip
 
     def _restart_point(self, attempt, q_start, q_best, free):
-        """Attempt 1 starts from the natural posture, later ones from random postures
-        halfway between it and a uniform sample of the joint ranges."""
+        """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
+        from the natural posture, later ones from random postures halfway between it and a
+        uniform sample of the joint ranges."""
+        if attempt == 1:
+            return q_start.copy()
         q = self.natural.copy()
-        if attempt > 1 or np.allclose(q[free], q_start[free]):
+        if attempt > 2 or np.allclose(q[free], q_start[free]):
             lo = np.maximum(self.lower[free], -np.pi)
             hi = np.minimum(self.upper[free], np.pi)
             q[free] = 0.5 * (q[free] + self._rng.uniform(lo, hi))
@@ -743,6 +755,7 @@ class _Plan:
         for a, b in self.joined:
             self.floor[a, b] = -CONTACT_ALLOWANCE
         self.items: list = []
+        self.collide = True
         self.cons = problem.constraints
         self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE
                       for c in problem.constraints if isinstance(c, JointTarget)}  # fmt: skip

@@ -219,7 +219,7 @@ def _bundled_bones() -> dict[str, BoneMap]:
     }
     clav_dir = _unit(np.subtract(ARM_R_ORIGIN, CLAV_R_ORIGIN))
     right = {
-        "clav": (clav_dir, _FWD),
+        "clav": (clav_dir, _unit(np.subtract(_FWD, np.dot(_FWD, clav_dir) * np.array(clav_dir)))),
         "arm": (_DOWN, _FWD),
         "f_arm": (_DOWN, _PALMAR_R),
         "palm": (_DOWN, _PALMAR_R),

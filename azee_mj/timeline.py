@@ -156,10 +156,10 @@ class Rollout:
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
             "constraints": [
                 {"block": t.block, "index": t.index, "kind": t.kind, "unit": t.unit,
-                 "tol": t.tol, "worst": t.worst, "ok": t.ok}
+                 "tol": float(t.tol), "worst": t.worst, "ok": bool(t.ok)}
                 for t in self.traces
             ],  # fmt: skip
-            "all_within_tolerance": all(t.ok for t in self.traces),
+            "all_within_tolerance": bool(all(t.ok for t in self.traces)),
             "schedule": {
                 k: [{"block": i.block, "start": i.start, "end": i.end} for i in v]
                 for k, v in self.schedule.items()
@@ -325,6 +325,18 @@ class _Realizer:
         self.by_path = {b.path: b for b in self.blocks}
         self.results: list[ik.IKResult] = []
         self.n_key = 0
+        self.allowed = self._contact_bodies()
+
+    def _contact_bodies(self) -> frozenset[tuple[int, int]]:
+        """Body pairs some contact constraint of the score brings together."""
+        pairs = set()
+        for b in self.blocks:
+            for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
+                if isinstance(c, sc.Place) and isinstance(c.at, sc.PSite) and not c.at.ref.locus:
+                    ids = [int(self.m.site_bodyid[self.solver.site_id(self.comp.site(r))])
+                           for r in (c.site, c.at.ref)]
+                    pairs |= {(ids[0], ids[1]), (ids[1], ids[0])}
+        return frozenset(pairs)
 
     # -- helpers ---------------------------------------------------------------------------
     def _solve(self, cons, free, q0) -> ik.IKResult:
@@ -403,28 +415,41 @@ class _Realizer:
                 groups[0] |= set(self.track_joints) - {"face", "eyes"} if groups[0] else set()
             else:
                 groups = _components([tr for _, _, tr, _ in items])
-            for group in groups:
-                mine = [it for it in items if it[2] & group]
-                cons, targets = [], {}
-                for c, mch, _, _ in mine:
-                    if c is not None:
-                        cons.append(c)
-                    for j, v in mch.items():
-                        targets[j] = targets.get(j, 0.0) + v
-                cons += self._joint_targets(targets)
-                free = tuple(j for t in sorted(group) for j in self.track_joints[t])
-                q0 = state.copy()
-                places = [c for c in cons if not isinstance(c, (ik.Orient, ik.Look))]
-                if len(places) < len(cons) and any(it[3] for it in mine) and places:
-                    q0 = self._solve(places, free, q0).qpos  # rule 2: placements first
-                    self.n_key += 1
-                res = self._solve(cons, free, q0)
-                self.n_key += 1
+            solved = [self._solve_group(g, items, state) for g in groups]
+            if self.mode is Mode.MULTITRACK and any(not r.converged for r, _, _ in solved):
+                # Out of the limbs' reach alone: let the trunk help, and since moving it
+                # moves everything above it, solve every active track together.
+                group = set().union(*groups) | {"spine"}
+                retry = self._solve_group(group, items, state)
+                if retry[0].converged or _violation(retry[0]) < sum(_violation(r) for r, _, _ in solved):
+                    groups, solved = [group], [retry]
+            for group, (res, cons, free) in zip(groups, solved):
                 for t in group:
                     d = self.track_dofs[t]
                     state[d] = res.qpos[d]
                     keys[t].append(_Key(t0, t1, res.qpos.copy(), tuple(cons), free))
         return keys
+
+    def _solve_group(self, group: set[str], items, state: np.ndarray):
+        """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
+        placements first when a block starts with both). Returns (result, cons, free)."""
+        mine = [it for it in items if it[2] & group]
+        cons, targets = [], {}
+        for c, mch, _, _ in mine:
+            if c is not None:
+                cons.append(c)
+            for j, v in mch.items():
+                targets[j] = targets.get(j, 0.0) + v
+        cons += self._joint_targets(targets)
+        free = tuple(j for t in sorted(group) for j in self.track_joints[t])
+        q0 = state.copy()
+        places = [c for c in cons if not isinstance(c, (ik.Orient, ik.Look))]
+        if len(places) < len(cons) and any(it[3] for it in mine) and places:
+            q0 = self._solve(places, free, q0).qpos
+            self.n_key += 1
+        res = self._solve(cons, free, q0)
+        self.n_key += 1
+        return res, cons, free
 
     def _joint_targets(self, changes: dict[str, float], tol: float = 0.02):
         out = []
@@ -524,10 +549,14 @@ class _Realizer:
                         free |= {j for tr in self.comp.site_tracks(site)
                                  for j in self.track_joints[tr]}  # fmt: skip
             if not cons:
+                if tracks and self._penetrates(q[f]):
+                    # A blend that would pass through the body: push it out, staying close.
+                    free = {j for tr in tracks for j in self.track_joints[tr]}
+                    soft = self._soft_targets(q[f], free)
+                    q[f] = prev = self._solve(soft, sorted(free), q[f]).qpos
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
-            soft = [ik.JointTarget(j, float(q[f, self.m.jnt_qposadr[self.solver.joint_id(j)]]),
-                                   0.3, "blend", soft=True) for j in sorted(free)]  # fmt: skip
+            soft = self._soft_targets(q[f], free)
             q0 = q[f].copy()
             if prev is not None:
                 dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
@@ -536,6 +565,16 @@ class _Realizer:
             q[f] = res.qpos
             prev = res.qpos
         return q
+
+    def _soft_targets(self, qf: np.ndarray, joints) -> list[ik.JointTarget]:
+        adr = self.m.jnt_qposadr
+        return [ik.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
+                for j in sorted(joints)]  # fmt: skip
+
+    def _penetrates(self, qf: np.ndarray) -> bool:
+        d = self.solver.data
+        d.qpos[:] = qf
+        return ik.penetration_depth(self.m, d, self.allowed) > ik.PENETRATION_LIMIT
 
     def _transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:
         """(T, 3) path points of a transpath for every frame (valid inside its interval)."""
@@ -566,8 +605,7 @@ class _Realizer:
                          if t not in ("face", "eyes"))  # fmt: skip
             kq = {}
             for f in kf:
-                soft = [ik.JointTarget(j, float(q[f, self.m.jnt_qposadr[self.solver.joint_id(j)]]),
-                                       0.3, "blend", soft=True) for j in free]  # fmt: skip
+                soft = self._soft_targets(q[f], free)
                 cons = [ik.Place(site, ik.Const(tuple(pts[f])), 1e-3, f"{b.path}@path")]
                 kq[f] = self._solve(cons + soft, free, q[f]).qpos
             # Whole-body blend between consecutive transpath keyframes.
@@ -640,6 +678,11 @@ class _Realizer:
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
                                            unit, b.start, b.end, vals))  # fmt: skip
         return tuple(out)
+
+
+def _violation(res: ik.IKResult) -> float:
+    """How far a result is from its tolerances (sum of value / tol over the violated)."""
+    return sum(r.value / r.tol for r in res.residuals if not r.ok) + res.penetration / 1e-3
 
 
 def _components(track_sets: list[set[str]]) -> list[set[str]]:
@@ -758,8 +801,9 @@ def realize(
     q = r.frames(keys)
     tick(0.8)
     times = np.arange(q.shape[0]) / fps
-    q = r.trills(q, times)
+    # Residuals are those of the postures the blocks ask for: a trill is added on top.
     traces = r.traces(q, times)
+    q = r.trills(q, times)
     site_names = tuple(solver.signer_map.sites)
     sids = np.array([solver.site_id(s) for s in solver.signer_map.sites.values()])
     d = solver.data
@@ -777,3 +821,46 @@ def realize(
         per_problem_iterations=np.array([x.iterations for x in res]),
     )  # fmt: skip
     return Rollout(fps, mode, times, q, site_names, site_pos, r.schedule(), traces, stats)
+
+
+def contact_pairs(score: sc.Score | str, times: np.ndarray) -> dict[int, frozenset[tuple[str, str]]]:
+    """Frame -> body-name pairs that a contact constraint active then brings together."""
+    from azee_mj.model import load_model
+
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    m = load_model()
+    comp = _Compiler(m, DEFAULT_MAP)
+    out: dict[int, set[tuple[str, str]]] = {}
+    for b in score.blocks():
+        for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
+            if isinstance(c, sc.Place) and isinstance(c.at, sc.PSite) and not c.at.ref.locus:
+                names = []
+                for ref in (c.site, c.at.ref):
+                    sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, comp.site(ref))
+                    names.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, m.site_bodyid[sid]))
+                for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end)):
+                    out.setdefault(int(f), set()).add((names[0], names[1]))
+    return {f: frozenset(v) for f, v in out.items()}
+
+
+def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
+                 solver: ik.Solver | None = None) -> tuple[ConstraintTrace, ...]:
+    """Residual traces of ``score``'s constraints on given frames ``qpos`` (T, nq)."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    r = _Realizer(score, solver or ik.Solver(), fps, Mode.MULTITRACK)
+    return r.traces(np.asarray(qpos, float), np.arange(len(qpos)) / fps)
+
+
+def residual_summary(score: sc.Score | str, arrays: Mapping[str, np.ndarray]) -> tuple[str, bool]:
+    """A readable residual summary of a rollout's arrays against ``score``, and whether
+    every constraint is within its tolerance."""
+    traces = score_traces(score, arrays["qpos"], float(arrays["fps"]))
+    bad = [t for t in traces if not t.ok]
+    lines = [f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"]
+    for t in bad[:8]:
+        k, u = (1000.0, "mm") if t.unit == "m" else (np.degrees(1.0), "deg")
+        lines.append(f"  {t.block} constraint {t.index} ({t.kind}): worst {t.worst * k:.2f} {u}"
+                     f" > tol {t.tol * k:.2f} {u}")
+    return "\n".join(lines), not bad

@@ -1,0 +1,192 @@
+"""Posture solving on the real signer: Jacobians, convergence, limits, collisions."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from azee_mj import ik
+from azee_mj.check import check_poses
+from azee_mj.sites import DEFAULT_MAP
+
+
+@pytest.fixture(scope="module")
+def solver() -> ik.Solver:
+    return ik.Solver(seed=0)
+
+
+def _fk(solver, q):
+    d = solver.data
+    d.qpos[:] = q
+    mujoco.mj_kinematics(solver.model, d)
+    mujoco.mj_comPos(solver.model, d)
+    return d
+
+
+def _random_arm_posture(solver, rng):
+    q = solver.natural.copy()
+    for side in "RL":
+        for j in DEFAULT_MAP.tracks[f"arm_{side}"]:
+            jid = solver.joint_id(j)
+            lo, hi = solver.model.jnt_range[jid]
+            q[solver.model.jnt_qposadr[jid]] = rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo))
+    return q
+
+
+PALM_R = DEFAULT_MAP.bones["palm_R"]
+FARM_L = DEFAULT_MAP.bones["f_arm_L"]
+CONSTRAINTS = [
+    ik.Place("I_TIP_R", ik.Const((0.3, -0.1, 0.3))),
+    ik.Place("I_TIP_R", ik.SitePos("PA_L")),
+    ik.Place("T_TIP_R", ik.Lin(((1.0, ik.SitePos("CH")), (0.06, ik.BodyAxis("head", (1.0, 0, 0)))))),
+    ik.Orient("palm_R", PALM_R.nrm, ik.Rel.ALONG, ik.Const((0.0, 0.0, -1.0))),
+    ik.Orient("palm_R", PALM_R.dir, ik.Rel.OPP, ik.Const((1.0, 0.0, 0.0))),
+    ik.Orient("palm_R", PALM_R.nrm, ik.Rel.PERP, ik.Const((0.0, 1.0, 0.0))),
+    ik.Orient("f_arm_R", (0, 0, -1.0), ik.Rel.ALONG, ik.BodyAxis("f_arm_L", FARM_L.dir)),
+    ik.Orient("palm_R", PALM_R.dir, ik.Rel.PERP,
+              ik.Unit(ik.Cross(ik.BodyAxis("f_arm_L", FARM_L.dir), ik.Const((0, 0, 1.0))))),
+    ik.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), ik.SitePos("I_TIP_R")),
+    ik.JointTarget("index_R_1_flex", 0.5),
+]
+
+
+@pytest.mark.parametrize("c", CONSTRAINTS, ids=lambda c: type(c).__name__)
+def test_jacobian_matches_finite_differences(solver, c):
+    rng = np.random.default_rng(3)
+    q = _random_arm_posture(solver, rng)
+    plan = solver._plan(ik.IKProblem((c,), tuple(j for t in DEFAULT_MAP.tracks.values() for j in t)))
+    _fk(solver, q)
+    r0, J = (x.copy() for x in plan.rows())
+    eps = 1e-6
+    fd = np.zeros_like(J)
+    for i in range(solver.model.nv):
+        dq = q.copy()
+        dq[i] += eps
+        _fk(solver, dq)
+        fd[:, i] = (plan.rows()[0] - r0) / eps
+    scale = max(1.0, np.abs(J).max())
+    np.testing.assert_allclose(J, fd, atol=1e-4 * scale)
+
+
+@pytest.mark.parametrize("c", CONSTRAINTS[:9], ids=lambda c: type(c).__name__)
+def test_fast_rows_equal_expression_rows(solver, c):
+    """The compiled fast paths give the same rows as the general expression evaluator."""
+    q = _random_arm_posture(solver, np.random.default_rng(4))
+    plan = solver._plan(ik.IKProblem((c,)))
+    _fk(solver, q)
+    r, J = plan.rows()
+    rg, Jg = c.rows(ik._Kin(solver))
+    np.testing.assert_allclose(r, rg, atol=1e-9)
+    np.testing.assert_allclose(J, Jg, atol=1e-9)
+
+
+def test_connect_equality_rows_are_mujocos(solver):
+    """Placements mirrored as connect equalities give MuJoCo the rows the solver uses."""
+    problem = ik.IKProblem((ik.Place("I_TIP_R", ik.Const((0.3, -0.1, 0.3))),
+                            ik.Place("I_TIP_L", ik.SitePos("PA_R"))))
+    m = solver.model
+    m.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
+    d = mujoco.MjData(m)
+    assert solver.configure_equalities(problem, d) == 2
+    d.qpos[:] = _random_arm_posture(solver, np.random.default_rng(5))
+    mujoco.mj_forward(m, d)
+    eq_rows = np.flatnonzero(d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    assert eq_rows.size == 6
+    efc_J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)
+    plan = solver._plan(problem)
+    solver.data.qpos[:] = d.qpos
+    mujoco.mj_kinematics(m, solver.data)
+    mujoco.mj_comPos(m, solver.data)
+    r, J = plan.rows()
+    np.testing.assert_allclose(d.efc_pos[eq_rows], r * 1e-3, atol=1e-12)
+    np.testing.assert_allclose(efc_J[eq_rows], J * 1e-3, atol=1e-9)
+    solver.configure_equalities(ik.IKProblem(()), d)
+    m.opt.jacobian = mujoco.mjtJacobian.mjJAC_AUTO
+
+
+def test_reachable_problems_converge_to_a_tenth_of_a_millimetre(solver):
+    rng = np.random.default_rng(7)
+    free = DEFAULT_MAP.tracks["arm_R"] + DEFAULT_MAP.tracks["arm_L"]
+    for _ in range(8):
+        truth = _random_arm_posture(solver, rng)
+        d = _fk(solver, truth)
+        if ik.penetration_depth(solver.model, d) > 0:
+            continue
+        d = _fk(solver, truth)
+        cons = tuple(ik.Place(s, ik.Const(tuple(d.site_xpos[solver.site_id(s)])))
+                     for s in ("I_TIP_R", "WR_R", "I_TIP_L", "WR_L"))
+        res = solver.solve(ik.IKProblem(cons, free), solver.natural)
+        assert res.converged
+        assert max(r.value for r in res.residuals) < 1e-4
+
+
+def test_out_of_reach_target_reports_its_residual(solver):
+    target = np.array([1.5, -0.4, 0.4])
+    res = solver.solve(ik.IKProblem((ik.Place("M_TIP_R", ik.Const(tuple(target))),)))
+    assert not res.converged
+    assert np.all(np.isfinite(res.qpos))
+    d = _fk(solver, res.qpos)
+    tip = d.site_xpos[solver.site_id("M_TIP_R")]
+    assert res.residuals[0].value == pytest.approx(np.linalg.norm(tip - target), abs=1e-9)
+    # The best posture reaches out toward the target: the residual is the distance left
+    # once the arm is stretched (shoulder-to-target minus the limb length, within 5 cm).
+    shoulder = d.xpos[solver.body_id("arm_R")]
+    reach = np.linalg.norm(tip - shoulder)
+    assert res.residuals[0].value == pytest.approx(np.linalg.norm(target - shoulder) - reach, abs=0.05)
+    assert np.dot(tip - shoulder, target - shoulder) / (reach * np.linalg.norm(target - shoulder)) > 0.99
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-0.6, 1.2)))
+def test_joint_limits_are_never_exceeded(solver, target):
+    res = solver.solve(ik.IKProblem((ik.Place("I_TIP_R", ik.Const(target)),
+                                     ik.Orient("palm_R", PALM_R.nrm, ik.Rel.ALONG, ik.Const((0, 0, 1.0))))))
+    m = solver.model
+    q = res.qpos[m.jnt_qposadr]
+    assert np.all(q >= m.jnt_range[:, 0]) and np.all(q <= m.jnt_range[:, 1])
+    assert np.all(np.isfinite(res.qpos))
+
+
+def test_hand_pushed_into_the_face_stops_at_the_skin(solver):
+    d = _fk(solver, solver.natural)
+    nose = d.site_xpos[solver.site_id("NO")]
+    inside = nose + np.array([-0.06, 0.0, 0.0])  # 6 cm behind the nose tip, inside the head
+    arm = DEFAULT_MAP.tracks["arm_R"]
+    res = solver.solve(ik.IKProblem((ik.Place("I_TIP_R", ik.Const(tuple(inside))),), arm))
+    assert not res.converged
+    assert res.penetration <= ik.PENETRATION_LIMIT
+    report = check_poses(solver.model, res.qpos)
+    assert report.clean, report
+    # It got as close as the skin allows: within a few centimetres of the nose tip.
+    tip = _fk(solver, res.qpos).site_xpos[solver.site_id("I_TIP_R")]
+    assert np.linalg.norm(tip - nose) < 0.04
+
+
+def test_fingertip_contact_touches_without_interpenetration():
+    solver = ik.Solver(seed=0)
+    # Index fingertips touch, the other fingers curled (the pointing hand shape).
+    curl = tuple(ik.JointTarget(f"{f}_{x}_{n}_flex", v) for x in "RL"
+                 for f in ("middle", "ring", "little") for n, v in ((1, 1.5), (2, 1.6), (3, 1.0)))
+    res = solver.solve(ik.IKProblem((ik.Place("I_TIP_R", ik.SitePos("I_TIP_L")),) + curl))
+    assert res.converged, res.residuals
+    assert res.residuals[0].value <= 1e-3
+    report = check_poses(solver.model, res.qpos)  # nothing deeper than 1 mm
+    assert report.clean, report.penetrations
+    assert report.max_depth[0] <= ik.CONTACT_ALLOWANCE + 1e-5
+
+
+def test_pose_check_finds_a_penetration_made_on_purpose(solver):
+    m = solver.model
+    assert check_poses(m, solver.natural).clean
+    q = solver.natural.copy()
+    # Swing the right arm across the chest: the forearm goes through the torso.
+    for j, v in (("arm_R_flex", 0.3), ("arm_R_abd", -0.5), ("f_arm_R_flex", 0.0)):
+        q[m.jnt_qposadr[solver.joint_id(j)]] = v
+    report = check_poses(m, q)
+    assert not report.clean
+    assert report.penetrations[0].depth > 1e-3
+    assert any("arm_R" in p.geom1 + p.geom2 or "f_arm_R" in p.geom1 + p.geom2
+               for p in report.penetrations)

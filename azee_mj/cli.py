@@ -103,6 +103,49 @@ def _cmd_realize(args) -> int:
     return 0
 
 
+def _clip(args, progress: bool = True):
+    from azee_mj.viewer import load_clip
+
+    if args.fps is not None and args.fps <= 0:
+        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    realize_fps = args.fps or 50.0
+    return load_clip(args.input, score=getattr(args, "score", None), fps=realize_fps,
+                     progress=_Progress("realize") if progress else None)  # fmt: skip
+
+
+def _cmd_preview(args) -> int:
+    from azee_mj.viewer import preview
+
+    clip = _clip(args)
+    n = preview(clip, targets=not args.no_targets, max_frames=args.max_frames,
+                camera=args.camera)  # fmt: skip
+    if args.max_frames is not None:
+        print(f"preview: {n} viewer updates")
+    return 0
+
+
+def _cmd_render(args) -> int:
+    from azee_mj.viewer import check_render_options, parse_size, render
+
+    size = parse_size(args.size)
+    check_render_options(args.output, size, args.fps, args.time)  # before realizing
+    clip = _clip(args)
+    out = render(clip, args.output, camera=args.camera, size=size, fps=args.fps,
+                 time=args.time, targets=args.targets, progress=_Progress("render"))  # fmt: skip
+    print(f"{out}: written")
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from azee_mj.report import write_report
+
+    paths = write_report(args.score, args.output, fps=args.fps or 50.0,
+                         progress=_Progress("report"))  # fmt: skip
+    for p in paths:
+        print(f"{p}: written")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from azee_mj import __version__
 
@@ -129,6 +172,35 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("rollout", help="ROLLOUT.npz written by 'azee-mj realize'")
     c.add_argument("--score", help="the score it realizes: also report constraint residuals")
     c.set_defaults(func=_cmd_check)
+
+    from azee_mj.viewer import CAMERAS
+
+    v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
+    v.add_argument("input", metavar="SCORE|ROLLOUT", help="SCORE.json (realized first) or ROLLOUT.npz")
+    v.add_argument("--score", help="the score of a ROLLOUT.npz, to draw its targets")
+    v.add_argument("--fps", type=float, help="frames per second when realizing (default 50)")
+    v.add_argument("--camera", choices=CAMERAS, help="start from a fixed camera (default: free)")
+    v.add_argument("--no-targets", action="store_true", help="do not draw constraint targets")
+    v.add_argument("--max-frames", type=int, help=argparse.SUPPRESS)  # for tests
+    v.set_defaults(func=_cmd_preview)
+
+    w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
+    w.add_argument("input", metavar="SCORE|ROLLOUT", help="SCORE.json (realized first) or ROLLOUT.npz")
+    w.add_argument("-o", "--output", required=True, help="OUT.mp4, OUT.gif or OUT.png")
+    w.add_argument("--score", help="the score of a ROLLOUT.npz (targets, contact sheet labels)")
+    w.add_argument("--camera", choices=CAMERAS, default="front", help="camera (default front)")
+    w.add_argument("--size", default="640x480", help="WxH in pixels (default 640x480)")
+    w.add_argument("--fps", type=float, help="video frames per second (default: the rollout's)")
+    w.add_argument("--time", type=float, help="for .png: the frame at T seconds (default: a "
+                   "contact sheet of the key postures)")
+    w.add_argument("--targets", action="store_true", help="draw constraint targets")
+    w.set_defaults(func=_cmd_render)
+
+    h = sub.add_parser("report", help="HTML report (or PNG set) of a score's realization")
+    h.add_argument("score", help="SCORE.json")
+    h.add_argument("-o", "--output", required=True, help="REPORT.html, or DIR/ for PNG files")
+    h.add_argument("--fps", type=float, help="frames per second (default 50)")
+    h.set_defaults(func=_cmd_report)
     return p
 
 

@@ -290,10 +290,14 @@ class IKProblem:
       constraints: the constraints, all solved together.
       free_joints: model joints the solver may move; None = every joint that moves a
         constrained body (its ancestors). Other joints keep their warm-start value.
+      touching: body pairs that may touch (up to ``CONTACT_ALLOWANCE`` deep) besides those
+        that a site-to-site placement of this problem brings together.
     """
 
     constraints: tuple[Constraint, ...]
     free_joints: tuple[str, ...] | None = None
+    #: Body-name pairs allowed to touch (a contact elsewhere in the score holds them).
+    touching: tuple[tuple[str, str], ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -482,6 +486,8 @@ class Solver:
     def _joined_bodies(self, problem: IKProblem) -> set[tuple[int, int]]:
         """Body pairs a site-to-site placement brings together (allowed to touch)."""
         pairs = set()
+        for a, b in problem.touching:
+            pairs |= {(self.body_id(a), self.body_id(b)), (self.body_id(b), self.body_id(a))}
         for c in problem.constraints:
             if isinstance(c, Place):
                 bodies = self._bodies_of(c)

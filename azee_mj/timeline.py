@@ -44,6 +44,8 @@ from azee_mj.sites import DEFAULT_MAP, SignerMap
 MAX_BLEND = 0.6
 #: Shortest blend when a posture must change with no gap [s].
 MIN_BLEND = 0.08
+#: Postures closer than this per joint [rad] are the same (the solver's accuracy).
+SAME_POSTURE = 2e-3
 #: Peak joint speed a blend is sized for [rad/s] (the limit is 25 rad/s).
 BLEND_SPEED = 12.0
 
@@ -326,6 +328,8 @@ class _Realizer:
         self.results: list[ik.IKResult] = []
         self.n_key = 0
         self.allowed = self._contact_bodies()
+        name = lambda b: mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)  # noqa: E731
+        self.touching = tuple((name(a), name(b)) for a, b in self.allowed if a < b)
 
     def _contact_bodies(self) -> frozenset[tuple[int, int]]:
         """Body pairs some contact constraint of the score brings together."""
@@ -340,7 +344,7 @@ class _Realizer:
 
     # -- helpers ---------------------------------------------------------------------------
     def _solve(self, cons, free, q0) -> ik.IKResult:
-        res = self.solver.solve(ik.IKProblem(tuple(cons), tuple(free)), q0)
+        res = self.solver.solve(ik.IKProblem(tuple(cons), tuple(free), self.touching), q0)
         self.results.append(res)
         return res
 
@@ -405,9 +409,17 @@ class _Realizer:
                 if b.start <= t0 < b.end:
                     items += [(c, mch, tr, b.start == t0) for c, mch, tr, src in cons
                               if not isinstance(src, sc.Trill)]  # fmt: skip
+            held: set[str] = set()
             for h in holds:
                 if h.start <= t0 < h.end:
-                    items += self._hold_items(h, keys)
+                    # Rule 4: the held block is realized (it ended before); keep its posture.
+                    at = self.by_path[h.hold_of].end
+                    for t in self._held_tracks(h) - held:
+                        q = self._track_posture_at(keys[t], at).copy()
+                        state[self.track_dofs[t]] = q[self.track_dofs[t]]
+                        keys[t].append(_Key(t0, t1, q, (), self.track_joints[t]))
+                        held.add(t)
+            items = [it for it in items if not it[2] <= held]
             if not items:
                 continue
             if self.mode is Mode.FLATTENED:
@@ -460,18 +472,8 @@ class _Realizer:
             out.append(ik.JointTarget(j, val, tol, f"morph:{j}"))
         return out
 
-    def _hold_items(self, h: sc.Block, keys):
-        held = self.by_path[h.hold_of]
-        tracks = self._held_tracks(h)
-        targets = {}
-        for t in tracks:
-            q = self._track_posture_at(keys[t], held.end)
-            for j, d in zip(self.track_joints[t], self.track_dofs[t]):
-                targets[j] = q[d] - self.m.qpos0[d]
-        return [(None, targets, tracks, h.start == h.start)]
-
     def _track_posture_at(self, tkeys: list[_Key], t: float) -> np.ndarray:
-        before = [k for k in tkeys if k.start < t + 1e-9]
+        before = [k for k in tkeys if k.start < t - 1e-9]
         return (before[-1].q if before else self.home)
 
     # -- pass 2: frames ------------------------------------------------------------------
@@ -498,7 +500,7 @@ class _Realizer:
         holds: list[list] = []
         for k in tkeys:
             qk = k.q[dofs]
-            if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=1e-6):
+            if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
                 holds[-1][1] = k.end
             else:
                 holds.append([k.start, k.end, qk])
@@ -536,9 +538,12 @@ class _Realizer:
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
             for tr in tracks:
+                # While blending toward the next posture, keep what both postures keep.
                 key = next((k for k in keys[tr] if k.start <= t < k.end), None)
+                nxt = next((k for k in keys[tr] if k.start > t), None)
                 if key is not None:
-                    cons += [c for c in key.cons if c not in cons]
+                    keep = [c for c in key.cons if nxt is None or c in nxt.cons]
+                    cons += [c for c in keep if c not in cons]
                     free |= set(key.free)
             for b in tp:
                 if b.start <= t < b.end:

@@ -1,0 +1,312 @@
+"""The realizer on the real signer: schedule, each block and constraint kind, motion."""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from azee_mj import ik, timeline
+from azee_mj.check import check_poses
+from azee_mj.score import load_score
+from azee_mj.sites import DEFAULT_MAP
+
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def solver() -> ik.Solver:
+    return ik.Solver(seed=0)
+
+
+@pytest.fixture(scope="module")
+def kinds(solver) -> timeline.Rollout:
+    return timeline.realize(DATA / "kinds.json", solver=solver)
+
+
+def _dofs(solver, track):
+    return [solver.model.jnt_qposadr[solver.joint_id(j)] for j in DEFAULT_MAP.tracks[track]]
+
+
+def _frames(rollout, start, end):
+    return np.flatnonzero((rollout.time >= start - 1e-9) & (rollout.time < end - 1e-9))
+
+
+def _site(rollout, name):
+    return rollout.site_pos[:, rollout.site_names.index(name)]
+
+
+def test_rollout_shapes_and_time_line(kinds, solver):
+    assert kinds.time.shape == (151,)
+    np.testing.assert_array_equal(kinds.time, np.arange(151) / 50.0)
+    assert kinds.qpos.shape == (151, solver.model.nq)
+    assert kinds.site_pos.shape == (151, len(DEFAULT_MAP.sites), 3)
+    assert np.all(np.isfinite(kinds.qpos))
+
+
+def test_every_constraint_holds_over_its_interval(kinds):
+    assert [t.block for t in kinds.traces if not t.ok] == []
+
+
+def test_schedule_assigns_blocks_to_the_tracks_they_drive(kinds):
+    blocks = {k: {i.block for i in v} for k, v in kinds.schedule.items()}
+    assert blocks["arm_R"] == {"ALL.A", "ALL.ARC", "ALL.B", "ALL.CIRC", "ALL.C", "ALL.KEEP"}
+    assert "ALL.C" in blocks["arm_L"]  # a contact drives both sides it joins
+    assert blocks["hand_R"] == {"ALL.SHAPE"} and blocks["hand_L"] == {"ALL.SHAPE"}
+    assert blocks["eyes"] == {"ALL.C", "ALL.KEEP"}
+    assert "ALL.SHAKE" in blocks["head"]
+    assert blocks["face"] == {"ALL.C", "ALL.KEEP"}
+
+
+def test_no_joint_leaves_its_range_or_moves_faster_than_25_rad_s(kinds, solver):
+    m = solver.model
+    q = kinds.qpos[:, m.jnt_qposadr]
+    assert np.all(q >= m.jnt_range[:, 0] - 1e-9) and np.all(q <= m.jnt_range[:, 1] + 1e-9)
+    hinge = m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE
+    speed = np.abs(np.diff(q[:, hinge], axis=0)) * kinds.fps
+    assert speed.max() < 25.0
+
+
+def test_no_penetration_at_any_frame(kinds, solver):
+    allowed = timeline.contact_pairs(DATA / "kinds.json", kinds.time)
+    report = check_poses(solver.model, kinds.qpos, allowed=allowed)
+    assert report.clean, report.penetrations[:3]
+
+
+def test_morphs_set_the_hand_shapes(kinds, solver):
+    m = solver.model
+    f = _frames(kinds, 0.0, 3.0)
+    fist = DEFAULT_MAP.morphs["fist"].joint_changes("L")
+    for j, v in fist.items():
+        adr = m.jnt_qposadr[solver.joint_id(j)]
+        lo, hi = m.jnt_range[solver.joint_id(j)]
+        np.testing.assert_allclose(kinds.qpos[f, adr], np.clip(v, lo, hi), atol=0.02)
+    for j in DEFAULT_MAP.morphs["flat"].joint_changes("R"):
+        adr = m.jnt_qposadr[solver.joint_id(j)]
+        assert np.abs(kinds.qpos[f, adr] - m.qpos0[adr]).max() < 0.25  # flat, thumb aside
+
+
+def test_face_morph_blends_in_and_out(kinds, solver):
+    adr = solver.model.jnt_qposadr[solver.joint_id("brow_R_raise")]
+    brow = kinds.qpos[:, adr]
+    assert brow[0] == pytest.approx(0.0)
+    assert brow[_frames(kinds, 2.0, 2.8)] == pytest.approx(0.008, abs=2e-4)
+    assert np.all(np.diff(brow[_frames(kinds, 1.4, 2.0)]) >= -1e-12)  # rises in the gap
+
+
+def test_transpath_arc_stays_on_its_circle(kinds):
+    f = _frames(kinds, 0.5, 0.9)
+    p = _site(kinds, "M_TIP_R")[f]
+    a, b = _site(kinds, "M_TIP_R")[f[0]], _site(kinds, "M_TIP_R")[_frames(kinds, 0.9, 1.0)[0]]
+    # All points on one circle through both ends (the arc's), within 1 mm; the middle of the
+    # arc is 5 cm above the chord's midpoint.
+    centre, radius = _circle(a, p[len(p) // 2], b)
+    assert np.abs(np.linalg.norm(p - centre, axis=1) - radius).max() < 1e-3
+    assert np.max(p[:, 2] - (a[2] + b[2]) / 2) == pytest.approx(0.05, abs=0.004)
+
+
+def test_transpath_circle_turns_about_its_centre(kinds, solver):
+    f = _frames(kinds, 1.4, 2.0)
+    p = _site(kinds, "M_TIP_R")[f]
+    d = solver.data
+    d.qpos[:] = kinds.qpos[f[0]]
+    mujoco.mj_kinematics(solver.model, d)
+    centre = d.site_xpos[solver.site_id("ssp")] + np.array([0.0, -0.08, 0.12])
+    r = p - centre
+    # About the fwd axis the angle sweeps more than a full turn (one turn plus the way to
+    # the end point); the offset along fwd moves steadily from the start's to the end's.
+    ang = np.unwrap(np.arctan2(r[:, 2], r[:, 1]))
+    assert abs(ang[-1] - ang[0]) > 2 * np.pi
+    dx = np.diff(r[:, 0])
+    assert np.all(dx * np.sign(r[-1, 0] - r[0, 0]) >= -1e-4)
+
+
+def test_site_trill_oscillates_at_its_amplitude_and_frequency(kinds):
+    f = _frames(kinds, 0.9, 1.4)
+    z = _site(kinds, "M_TIP_R")[f, 2]
+    t = kinds.time[f] - 0.9
+    fit = np.linalg.lstsq(np.c_[np.sin(2 * np.pi * 4 * t), np.ones_like(t)], z, rcond=None)[0]
+    assert fit[0] == pytest.approx(0.01, rel=0.15)
+
+
+def test_bone_trill_shakes_the_head(kinds, solver):
+    d, yaw = solver.data, []
+    for f in _frames(kinds, 0.3, 1.1):
+        d.qpos[:] = kinds.qpos[f]
+        mujoco.mj_kinematics(solver.model, d)
+        face = d.xmat[solver.body_id("head")].reshape(3, 3) @ np.asarray(DEFAULT_MAP.bones["head"].nrm)
+        yaw.append(np.degrees(np.arctan2(face[1], face[0])))
+    assert max(yaw) - min(yaw) == pytest.approx(2 * 8.0, rel=0.1)  # excursion 2A
+
+
+def test_look_points_both_eyes_at_the_target(kinds, solver):
+    f = _frames(kinds, 2.0, 2.4)[-1]
+    d = solver.data
+    d.qpos[:] = kinds.qpos[f]
+    mujoco.mj_kinematics(solver.model, d)
+    target = d.site_xpos[solver.site_id("ssp")] + np.array([0.1, 0.0, 0.3])
+    for eye in ("eye_L", "eye_R"):
+        b = solver.body_id(eye)
+        gaze = d.xmat[b].reshape(3, 3) @ np.asarray(DEFAULT_MAP.bones[eye].dir)
+        want = (target - d.xpos[b]) / np.linalg.norm(target - d.xpos[b])
+        assert np.degrees(np.arccos(np.clip(gaze @ want, -1, 1))) < 1.0
+
+
+def test_hold_keeps_what_the_block_reached(kinds, solver):
+    end_c = kinds.qpos[_frames(kinds, 2.0, 2.4)[-1]]
+    for f in _frames(kinds, 2.4, 2.8):
+        for track in ("arm_R", "arm_L", "eyes"):
+            np.testing.assert_allclose(kinds.qpos[f, _dofs(solver, track)],
+                                       end_c[_dofs(solver, track)], atol=0.02)
+
+
+def _two_track_score():
+    return {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "TWO", "kind": "sync", "start": 0, "end": 2.0, "children": [
+            {"name": "STILL", "kind": "cstr", "start": 0, "end": 2.0, "constraints": [
+                {"type": "place", "site": "@PA(w)", "at": {"translate": "^ssp", "by": [0, 0.1, -0.05]}},
+                {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "up"}]},
+            {"name": "K1", "kind": "cstr", "start": 0.2, "end": 0.6, "constraints": [
+                {"type": "place", "site": "@I_TIP(s)", "at": {"translate": "^Rssp", "by": [0, 0, 0.2]}}]},
+            {"name": "K2", "kind": "cstr", "start": 1.2, "end": 1.6, "constraints": [
+                {"type": "place", "site": "@I_TIP(s)", "at": {"translate": "^ssp", "by": [0, -0.05, 0.25]}}]},
+        ]},
+    }
+
+
+def test_one_hand_moves_while_the_other_holds_still(solver):
+    multi = timeline.realize(_two_track_score(), solver=solver)
+    left = multi.qpos[:, _dofs(solver, "arm_L")]
+    assert np.abs(left - left[0]).max() < 1e-9
+    right = multi.qpos[:, _dofs(solver, "arm_R")]
+    assert np.abs(np.diff(right, axis=0)).max() > 0.01
+    # The right hand keeps moving through the left block's (absent) keys: no stop at 0.6 s
+    # other than its own.
+    assert all(t.ok for t in multi.traces)
+
+
+def test_flattened_mode_jerks_a_track_at_another_tracks_key(solver):
+    score = _two_track_score()
+    score["root"]["children"].append(
+        {"name": "BROWS", "kind": "cstr", "start": 0.85, "end": 1.0,
+         "constraints": [{"type": "morph", "id": "brows_raise", "weight": 1.0}]})
+    flat = timeline.realize(score, solver=solver, mode="flattened")
+    multi = timeline.realize(score, solver=solver)
+    arm = _dofs(solver, "arm_R")
+    speed = lambda r: np.abs(np.diff(r.qpos[:, arm], axis=0)).max(axis=1) * r.fps  # noqa: E731
+    # Multitrack: the right arm blends K1 -> K2 straight through the brows' key at 0.85 s.
+    # Flattened: every key is a whole-body posture, so the arm waits for the brows' keys and
+    # then hurries: a jerk caused by a block on another track.
+    during = _frames(multi, 0.6, 1.2)
+    assert speed(multi)[during[:-1]].min() > 0.0
+    assert speed(flat).max() > 1.5 * speed(multi).max()
+    head = _dofs(solver, "head")
+    assert np.abs(multi.qpos[:, head] - multi.qpos[0, head]).max() == 0.0
+
+
+def _mirror_site(name: str) -> str:
+    parts = name.split("_")
+    for i in range(len(parts) - 1, 0, -1):
+        if parts[i] in ("L", "R"):
+            parts[i] = {"L": "R", "R": "L"}[parts[i]]
+            return "_".join(parts)
+    return name
+
+
+def test_mirrored_score_mirrors_the_signing(solver):
+    score = json.loads((DATA / "good.json").read_text())
+    right = timeline.realize(score, solver=solver)
+    score["strong_side"] = "L"
+    left = timeline.realize(score, solver=solver)
+    idx = [right.site_names.index(_mirror_site(n)) for n in left.site_names]
+    mirrored = right.site_pos[:, idx] * np.array([1.0, -1.0, 1.0])
+    assert np.abs(left.site_pos - mirrored).max() < 1e-3
+
+
+def test_golden_rollout(solver):
+    """tests/data/good_golden.npz holds the expected rollout of good.json; regenerate with
+    ``python -c "from tests.test_timeline import write_golden; write_golden()"`` after an
+    intended change, and say why in the commit."""
+    golden = np.load(DATA / "good_golden.npz")
+    r = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    np.testing.assert_array_equal(r.time, golden["time"])
+    # Same posture to 1 mm at every site (solver round-off and restarts aside).
+    assert np.abs(r.site_pos - golden["site_pos"]).max() < 1e-3
+
+
+def write_golden():
+    r = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    np.savez_compressed(DATA / "good_golden.npz", time=r.time, qpos=r.qpos, site_pos=r.site_pos)
+
+
+def _circle(a, b, c):
+    ab, ac = b - a, c - a
+    n = np.cross(ab, ac)
+    cc = a + (np.cross(n, ab) * (ac @ ac) + np.cross(ac, n) * (ab @ ab)) / (2 * (n @ n))
+    return cc, np.linalg.norm(a - cc)
+
+
+# --- schedule properties ---------------------------------------------------------------
+
+_TRACK_CONSTRAINTS = {
+    "arm_R": {"type": "place", "site": "@I_TIP(R)", "at": {"translate": "^Rssp", "by": [0, 0, 0.1]}},
+    "arm_L": {"type": "place", "site": "@I_TIP(L)", "at": {"translate": "^Lssp", "by": [0, 0, 0.1]}},
+    "face": {"type": "morph", "id": "jaw_open", "weight": 0.5},
+    "hand_R": {"type": "morph", "id": "fist", "side": "R", "weight": 1.0},
+}
+
+
+@st.composite
+def _blocks(draw, depth=0, steps=40, prefix="B"):
+    """Blocks on a grid of 0.05 s inside a parent of ``steps`` grid steps."""
+    n = draw(st.integers(1, 3))
+    out = []
+    for i in range(n):
+        ia = draw(st.integers(0, steps - 2))
+        ib = draw(st.integers(ia + 2, steps))
+        a, b = ia * 0.05, ib * 0.05
+        name = f"{prefix}{i}"
+        if depth < 2 and ib - ia >= 6 and draw(st.booleans()):
+            kids = draw(_blocks(depth + 1, ib - ia, name + "_"))
+            out.append({"name": name, "kind": "sync", "start": a, "end": b, "children": kids})
+        else:
+            track = draw(st.sampled_from(sorted(_TRACK_CONSTRAINTS)))
+            out.append({"name": name, "kind": "cstr", "start": a, "end": b,
+                        "constraints": [copy.deepcopy(_TRACK_CONSTRAINTS[track])]})
+    return out
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(_blocks())
+def test_schedule_intervals_lie_within_their_parents(solver, children):
+    score = load_score({"format": "azee-score", "version": 1,
+                        "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0,
+                                 "children": children}})
+    r = timeline._Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
+    sched = r.schedule()
+    parents = {c.path: b for b in score.blocks() for c in b.children}
+    for track, intervals in sched.items():
+        for iv in intervals:
+            block = score.block(iv.block)
+            assert (iv.start, iv.end) == (block.start, block.end)
+            p = parents.get(iv.block)
+            while p is not None:
+                assert p.start - 1e-9 <= iv.start and iv.end <= p.end + 1e-9
+                p = parents.get(p.path)
+            assert track in set().union(*(r.comp.tracks_of(c) for c in block.constraints))
+    # Keys of a track exactly cover the union of its blocks' intervals (in time order).
+    keys = r.key_postures()
+    for track, intervals in sched.items():
+        covered = sorted((k.start, k.end) for k in keys[track])
+        assert covered == sorted(set(covered))
+        for iv in intervals:
+            inside = [k for k in covered if iv.start - 1e-9 <= k[0] and k[1] <= iv.end + 1e-9]
+            assert inside and inside[0][0] == pytest.approx(iv.start)
+            assert inside[-1][1] == pytest.approx(iv.end)

@@ -364,7 +364,7 @@ class Solver:
     many inactive ``connect`` equalities (see :meth:`configure_equalities`).
 
     Args:
-      model_path: the signer MJCF (default: the bundled signer).
+      model_path: the signer MJCF path or an ``MjSpec`` (default: the bundled signer).
       signer_map: the AZee map of that signer (for joint groups and the natural posture).
       max_iter: LM iterations per attempt.
       restarts: further attempts from other starts when an attempt does not converge.
@@ -386,7 +386,10 @@ class Solver:
         from azee_mj.sites import DEFAULT_MAP
 
         self.signer_map = signer_map or DEFAULT_MAP
-        spec = mujoco.MjSpec.from_file(str(model_path or MODEL_PATH))
+        if isinstance(model_path, mujoco.MjSpec):
+            spec = model_path.copy()
+        else:
+            spec = mujoco.MjSpec.from_file(str(model_path or MODEL_PATH))
         add_target_pool(spec, n_targets)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)

@@ -427,12 +427,19 @@ class _Realizer:
                 groups[0] |= set(self.track_joints) - {"face", "eyes"} if groups[0] else set()
             else:
                 groups = _components([tr for _, _, tr, _ in items])
-            solved = [self._solve_group(g, items, state) for g in groups]
+            # Hand shapes and face first: a placed fingertip depends on its hand's shape.
+            groups.sort(key=lambda g: any(it[0] is not None for it in items if it[2] & g))
+            before = state.copy()
+            solved = []
+            for g in groups:
+                solved.append(self._solve_group(g, items, state))
+                for t in g:
+                    state[self.track_dofs[t]] = solved[-1][0].qpos[self.track_dofs[t]]
             if self.mode is Mode.MULTITRACK and any(not r.converged for r, _, _ in solved):
                 # Out of the limbs' reach alone: let the trunk help, and since moving it
                 # moves everything above it, solve every active track together.
                 group = set().union(*groups) | {"spine"}
-                retry = self._solve_group(group, items, state)
+                retry = self._solve_group(group, items, before)
                 if retry[0].converged or _violation(retry[0]) < sum(_violation(r) for r, _, _ in solved):
                     groups, solved = [group], [retry]
             for group, (res, cons, free) in zip(groups, solved):

@@ -21,6 +21,7 @@ import math
 import os
 import subprocess
 import sys
+import threading
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -657,6 +658,7 @@ def preview(
     cams = [-1] + [_camera_id(model, c) for c in CAMERAS]
     cam_i = cams.index(_camera_id(model, camera)) if camera else 0
     data.qpos[:] = clip.qpos[0]
+    before = set(threading.enumerate())
     try:
         handle = mujoco.viewer.launch_passive(model, data, key_callback=player.key)
     except Exception as e:  # noqa: BLE001
@@ -707,4 +709,8 @@ def preview(
             _time.sleep(max(0.0, 1.0 / 60 - (_time.perf_counter() - now)))
     finally:
         handle.close()
+        # Let the viewer's thread destroy its window before the interpreter exits (GLFW
+        # terminates in an atexit hook, which must not race the window teardown).
+        for th in set(threading.enumerate()) - before:
+            th.join(timeout=10.0)
     return n

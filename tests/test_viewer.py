@@ -1,0 +1,292 @@
+"""Viewer decorations (no window), offscreen rendering (pixels, frame counts) and the real
+viewer under Xvfb."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from azee_mj import score as sc
+from azee_mj import viewer as v
+from azee_mj.cli import main
+from azee_mj.errors import AzeeError
+
+GOOD = Path(__file__).parent / "data" / "good.json"
+SMALL = (160, 120)
+
+
+@pytest.fixture(scope="module")
+def rollout():
+    from azee_mj.timeline import realize
+
+    return realize(GOOD)
+
+
+@pytest.fixture(scope="module")
+def clip(rollout) -> v.Clip:
+    return v.Clip.from_rollout(rollout, sc.load_score(GOOD), "good")
+
+
+@pytest.fixture(scope="module")
+def gl() -> str:
+    try:
+        return v.gl_backend()
+    except AzeeError as e:
+        pytest.skip(f"no OpenGL backend works here, so nothing can be rendered: {e}")
+
+
+# ---------------------------------------------------------------------------------------
+# Decorations, without a window
+# ---------------------------------------------------------------------------------------
+
+
+def _expected_targets(clip: v.Clip, frame: int):
+    """Targets of the K1 block evaluated directly from the score's expressions."""
+    from azee_mj.sites import DEFAULT_MAP
+
+    m = v.scene_model()
+    d = mujoco.MjData(m)
+    d.qpos[:] = clip.qpos[frame]
+    mujoco.mj_kinematics(m, d)
+
+    def site_pos(ref):
+        return d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE,
+                                             ref.model_site(DEFAULT_MAP))].copy()  # fmt: skip
+
+    def bone_axis(bone, axis):
+        b = bone.bone_map(DEFAULT_MAP)
+        bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.body)
+        return d.xmat[bid].reshape(3, 3) @ np.asarray(b.dir if axis is sc.Axis.DIR else b.nrm)
+
+    k1 = clip.score.block("GOOD.K1")
+    place, orient = k1.constraints
+    p = sc.eval_point(place.at, site_pos, bone_axis)
+    vec = sc.eval_vector(orient.vector, site_pos, bone_axis)
+    body = orient.bone.model_body(DEFAULT_MAP)
+    origin = d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)].copy()
+    return p, origin, vec / np.linalg.norm(vec)
+
+
+def test_markers_inside_k1_are_the_targets(clip):
+    frame = clip.frame_at(0.2)  # inside K1 [0, 0.4); PERM (morphs only) draws nothing
+    m = v.scene_model()
+    d = mujoco.MjData(m)
+    ms = v.markers(m, d, clip, frame, v.Targets(clip.score))
+    targets = [x for x in ms if x.kind != "contact"]
+    assert [(x.kind, x.label) for x in targets] == [("sphere", "GOOD.K1#1"),
+                                                    ("arrow", "GOOD.K1#2")]  # fmt: skip
+    p, origin, direction = _expected_targets(clip, frame)
+    np.testing.assert_allclose(targets[0].pos, p, atol=1e-9)
+    np.testing.assert_allclose(targets[1].pos, origin, atol=1e-9)
+    np.testing.assert_allclose(targets[1].end - targets[1].pos, v.ARROW_LENGTH * direction,
+                               atol=1e-9)  # fmt: skip
+
+
+def test_marker_colours_follow_the_residual_traces(clip, rollout):
+    rollout_traces = {(t.block, t.index): t for t in rollout.traces}
+    m = v.scene_model()
+    d = mujoco.MjData(m)
+    tg = v.Targets(clip.score)
+    for frame in (clip.frame_at(0.1), clip.frame_at(1.0)):
+        for x in v.markers(m, d, clip, frame, tg):
+            if x.kind == "contact":
+                assert x.violated and x.residual > v.PENETRATION
+                continue
+            block, index = x.label.split("#")
+            tr = rollout_traces[(block, int(index))]
+            assert x.residual == pytest.approx(tr.values[frame], abs=1e-9)
+            assert x.violated == (tr.values[frame] > tr.tol)
+
+
+def test_no_targets_without_a_score(clip):
+    bare = v.Clip(clip.time, clip.qpos, clip.fps, {}, None)
+    m = v.scene_model()
+    d = mujoco.MjData(m)
+    assert all(x.kind == "contact" for x in v.markers(m, d, bare, 10, None))
+    assert v.key_frames(bare)[0] == ("t = 0.00 s", 0)
+
+
+def test_add_markers_builds_geoms(clip):
+    m = v.scene_model()
+    d = mujoco.MjData(m)
+    ms = v.markers(m, d, clip, clip.frame_at(0.2), v.Targets(clip.score))
+    scn = mujoco.MjvScene(m, maxgeom=50)
+    assert v.add_markers(scn, ms) == len(ms) == scn.ngeom
+    g = scn.geoms[0]
+    assert g.type == mujoco.mjtGeom.mjGEOM_SPHERE
+    np.testing.assert_allclose(g.pos, ms[0].pos, atol=1e-6)
+    assert scn.geoms[1].type == mujoco.mjtGeom.mjGEOM_ARROW
+    full = mujoco.MjvScene(m, maxgeom=1)
+    assert v.add_markers(full, ms) == 1  # never overflows the scene
+
+
+def test_overlay_text_names_time_and_active_blocks(clip):
+    left, right = v.frame_text(clip, clip.frame_at(0.2))
+    rows = dict(zip(left.split("\n"), right.split("\n")))
+    assert rows["time"].startswith("0.200")
+    assert rows["arm_R"] == "GOOD.K1"
+    assert rows["hand_R"] == "GOOD.PERM"
+    assert rows["arm_L"] == "-"
+
+
+def test_player_keys():
+    p = v._Player(10)
+    p.key(32)
+    assert p.paused
+    p.key(262), p.key(262), p.key(263)
+    assert p.step == 1
+    p.key(265)
+    assert p.speed == 2.0
+    p.key(264), p.key(45)
+    assert p.speed == 0.5
+    p.key(67)
+    assert p.camera_steps == 1
+
+
+# ---------------------------------------------------------------------------------------
+# Offscreen rendering
+# ---------------------------------------------------------------------------------------
+
+
+def _png(path) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert("RGB")).astype(float)
+
+
+def test_still_shows_the_signer_and_frames_differ(clip, gl, tmp_path):
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    v.render(clip, a, time=0.2, size=(320, 240))
+    v.render(clip, b, time=1.0, size=(320, 240))
+    ia, ib = _png(a), _png(b)
+    assert ia.shape == (240, 320, 3)
+    assert ia.std() > 10, "blank image"
+    centre = ia[60:180, 120:200]  # the signer's torso, where the front camera looks
+    sky = ia[:25, :40]  # background, above the signer's head at the left
+    assert np.abs(centre.mean(axis=(0, 1)) - sky.mean(axis=(0, 1))).max() > 20
+    assert np.abs(ia - ib).mean() > 0.5, "the hands moved but the frames are equal"
+    assert np.abs(ia - ib)[:, :160].sum() > np.abs(ia - ib)[:, 240:].sum()  # signer's right
+
+
+def test_mp4_has_the_expected_frames_and_duration(clip, gl, tmp_path):
+    import imageio.v3 as iio
+
+    out = tmp_path / "g.mp4"
+    v.render(clip, out, size=SMALL, fps=25)
+    frames = iio.imread(out, plugin="FFMPEG")
+    n = int(np.floor(clip.duration * 25 + 1e-9)) + 1
+    assert frames.shape == (n, SMALL[1], SMALL[0], 3)
+    meta = iio.immeta(out, plugin="FFMPEG")
+    assert meta["fps"] == pytest.approx(25)
+    assert meta["duration"] == pytest.approx(n / 25, abs=0.05)
+    assert np.abs(frames[0].astype(float) - frames[n // 2]).mean() > 0.5
+
+
+def test_gif_frames_and_timing(clip, gl, tmp_path):
+    from PIL import Image
+
+    out = tmp_path / "g.gif"
+    v.render(clip, out, size=SMALL, fps=10)
+    with Image.open(out) as im:
+        assert im.size == SMALL
+        total = 0
+        for k in range(im.n_frames):  # Pillow merges identical frames (holds) into one
+            im.seek(k)
+            total += im.info["duration"]
+            assert im.info["duration"] % 100 == 0
+    assert 2 < im.n_frames <= 13
+    assert total == 1300  # 13 frames, 0.0 .. 1.2 s at 10 fps
+
+
+def test_contact_sheet_of_key_postures(clip, gl, tmp_path):
+    out = tmp_path / "sheet.png"
+    v.render(clip, out, size=SMALL, targets=True)
+    img = _png(out)
+    assert [k for k, _ in v.key_frames(clip)] == ["K1", "PERM", "K2"]
+    assert img.shape == (SMALL[1], 3 * SMALL[0], 3)
+    tiles = [img[:, i * SMALL[0]:(i + 1) * SMALL[0]] for i in range(3)]
+    assert np.abs(tiles[0] - tiles[2]).mean() > 0.5
+
+
+def test_cli_render_from_npz_with_score(gl, tmp_path, capsys):
+    npz = tmp_path / "g.npz"
+    assert main(["realize", str(GOOD), "-o", str(npz)]) == 0
+    out = tmp_path / "t.png"
+    assert main(["render", str(npz), "--score", str(GOOD), "-o", str(out), "--time", "0.2",
+                 "--size", "160x120", "--targets", "--camera", "three-quarter"]) == 0
+    assert _png(out).shape == (120, 160, 3)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["-o", "OUT.avi"], "-o: unknown output type '.avi'"),
+        (["-o", "OUT.png", "--size", "640by480"], "--size: expected WxH"),
+        (["-o", "OUT.png", "--size", "8x8"], "--size: width and height must be 16..4096"),
+        (["-o", "OUT.mp4", "--size", "161x120"], "--size: an .mp4 needs an even"),
+        (["-o", "OUT.png", "--time", "5"], "--time: 5 s is outside the rollout"),
+        (["-o", "OUT.gif", "--time", "0.1"], "--time: only for a .png"),
+        (["-o", "OUT.png", "--fps", "-1"], "--fps"),
+    ],
+)
+def test_cli_bad_render_options(args, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", str(GOOD), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("azee-mj: error: ") and message in err
+    assert err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []  # nothing written, no temp file left
+
+
+def test_missing_input_suffix(tmp_path):
+    with pytest.raises(AzeeError, match="expected a SCORE.json or a ROLLOUT.npz"):
+        v.load_clip(tmp_path / "x.txt")
+
+
+# ---------------------------------------------------------------------------------------
+# The real viewer, under Xvfb
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def display():
+    if os.environ.get("DISPLAY"):
+        yield os.environ["DISPLAY"]
+        return
+    xvfb = shutil.which("Xvfb")
+    if not xvfb:
+        pytest.skip("no DISPLAY and no Xvfb to make one")
+    n = next(k for k in range(99, 200) if not os.path.exists(f"/tmp/.X{k}-lock"))
+    proc = subprocess.Popen([xvfb, f":{n}", "-screen", "0", "800x600x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    for _ in range(50):
+        if os.path.exists(f"/tmp/.X11-unix/X{n}"):
+            break
+        time.sleep(0.1)
+    yield f":{n}"
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+def test_preview_opens_plays_and_closes(display):
+    env = dict(os.environ, DISPLAY=display, MUJOCO_GL="glfw")
+    r = subprocess.run([sys.executable, "-m", "azee_mj.cli", "preview", str(GOOD),
+                        "--max-frames", "4"], env=env, capture_output=True, text=True,
+                       timeout=90)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "preview: 4 viewer updates" in r.stdout
+
+
+def test_preview_without_display_is_a_clear_error(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["preview", str(GOOD), "--max-frames", "1"]) == 2
+    assert "preview needs a display" in capsys.readouterr().err

@@ -292,12 +292,16 @@ class IKProblem:
         constrained body (its ancestors). Other joints keep their warm-start value.
       touching: body pairs that may touch (up to ``CONTACT_ALLOWANCE`` deep) besides those
         that a site-to-site placement of this problem brings together.
+      prefer: the posture the mild preference pulls toward (the realizer passes the current
+        one, for the least motion); None = the solver's ``natural`` posture (``home``).
     """
 
     constraints: tuple[Constraint, ...]
     free_joints: tuple[str, ...] | None = None
     #: Body-name pairs allowed to touch (a contact elsewhere in the score holds them).
     touching: tuple[tuple[str, str], ...] = ()
+    #: (nq,) the posture to prefer among the solutions; None = the solver's natural one.
+    prefer: np.ndarray | None = dataclasses.field(default=None, compare=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -400,7 +404,7 @@ class Solver:
         self.n_targets = n_targets
         self.max_iter = max_iter
         self.restarts = restarts
-        self._rng = np.random.default_rng(seed)
+        self.seed = seed
         self._ids: dict[tuple[int, str], int] = {}
         self.lower = np.where(m.jnt_limited, m.jnt_range[:, 0], -np.inf)[m.dof_jntid]
         self.upper = np.where(m.jnt_limited, m.jnt_range[:, 1], np.inf)[m.dof_jntid]
@@ -600,7 +604,9 @@ class Solver:
         if attempt > 2 or np.allclose(q[free], q_start[free]):
             lo = np.maximum(self.lower[free], -np.pi)
             hi = np.minimum(self.upper[free], np.pi)
-            q[free] = 0.5 * (q[free] + self._rng.uniform(lo, hi))
+            # Seeded per attempt: a solve depends only on its problem and start.
+            rng = np.random.default_rng((self.seed, attempt))
+            q[free] = 0.5 * (q[free] + rng.uniform(lo, hi))
         untouched = np.setdiff1d(np.arange(self.model.nv), free)
         q[untouched] = q_start[untouched]
         return np.clip(q, self.lower, self.upper)
@@ -612,7 +618,7 @@ class Solver:
         free = plan.free
         lo, hi = self.lower[free], self.upper[free]
         w = self.dof_weight[free]
-        nat = self.natural[free]
+        nat = plan.prefer[free]
         q = q.copy()
         r, J, norms, depth = self._evaluate(q, plan)
         cost = float(r @ r)
@@ -765,6 +771,7 @@ class _Plan:
             self.floor[a, b] = -CONTACT_ALLOWANCE
         self.items: list = []
         self.collide = True
+        self.prefer = solver.natural if problem.prefer is None else np.asarray(problem.prefer)
         self.cons = problem.constraints
         self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE
                       for c in problem.constraints if isinstance(c, JointTarget)}  # fmt: skip

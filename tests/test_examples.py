@@ -24,15 +24,11 @@ FPS = 25.0
 
 #: Examples that fail because of a realizer problem (exact reasons; see examples/README.md).
 KNOWN = {
-    "armoire": "realizer: when a block (PALMS_DOWN) continues past the end of another "
-    "(HANDS_CONTACT) into a transpath, the segment gets a new key posture solved without the "
-    "ended placements and the blend to it is laid inside the ended block's last frames, so "
-    "HANDS_CONTACT's index-tip placements miss by 10-20 mm there",
-    "nicht-sondern": "realizer: same blend-inside-the-ended-block problem as armoire in its "
-    "ARMOIRE part, and the blend that releases the tree's elbow-on-hand contact passes the "
-    "strong forearm through the weak hand (about 5 mm) right after the hold",
-    "info-about": "realizer: trills are added after the collision repair, so the FLICKER site "
-    "trill of the topic sign pushes the strong upper arm into the chest (about 2 mm)",
+    "armoire": "solver: HANDS_CONTACT (index tips touching, flat hands, palms down) stops "
+    "1.15 mm short: the longer middle fingers must pass each other and the solve ends in a "
+    "local minimum",
+    "nicht-sondern": "solver: the same HANDS_CONTACT local minimum in its wardrobe part "
+    "(3 mm, and PALMS_DOWN 2.5 deg in the same posture)",
 }
 
 

@@ -176,7 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     from azee_mj.viewer import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
-    v.add_argument("input", metavar="SCORE|ROLLOUT", help="SCORE.json (realized first) or ROLLOUT.npz")
+    v.add_argument("input", metavar="SCORE|ROLLOUT",
+                   help="SCORE.json (realized first) or ROLLOUT.npz")
     v.add_argument("--score", help="the score of a ROLLOUT.npz, to draw its targets")
     v.add_argument("--fps", type=float, help="frames per second when realizing (default 50)")
     v.add_argument("--camera", choices=CAMERAS, help="start from a fixed camera (default: free)")
@@ -185,7 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
     v.set_defaults(func=_cmd_preview)
 
     w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
-    w.add_argument("input", metavar="SCORE|ROLLOUT", help="SCORE.json (realized first) or ROLLOUT.npz")
+    w.add_argument("input", metavar="SCORE|ROLLOUT",
+                   help="SCORE.json (realized first) or ROLLOUT.npz")
     w.add_argument("-o", "--output", required=True, help="OUT.mp4, OUT.gif or OUT.png")
     w.add_argument("--score", help="the score of a ROLLOUT.npz (targets, contact sheet labels)")
     w.add_argument("--camera", choices=CAMERAS, default="front", help="camera (default front)")

@@ -19,6 +19,7 @@ import numpy as np
 from azee_mj import ik
 from azee_mj import score as sc
 from azee_mj.errors import AzeeError
+from azee_mj.timeline import Rollout
 
 PLOT_HINT = "pip install azee_mj[plot]"
 #: How many of the hardest IK problems get a convergence curve.
@@ -46,7 +47,7 @@ class Realization:
     """A rollout with the IK problems solved for it (in solving order)."""
 
     score: sc.Score
-    rollout: object
+    rollout: Rollout
     records: tuple[tuple[ik.IKProblem, ik.IKResult], ...]
 
 
@@ -205,7 +206,7 @@ def _png(fig) -> bytes:
 def _html(r: Realization, images: dict[str, bytes]) -> str:
     ro, s = r.rollout, r.rollout.stats
     root = r.score.root.path
-    worst = {}
+    worst: dict[str, list[str]] = {}
     for tr in ro.traces:
         scale, unit = (1000.0, "mm") if tr.unit == "m" else (180 / np.pi, "deg")
         worst.setdefault(tr.block, []).append(

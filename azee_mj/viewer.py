@@ -25,6 +25,7 @@ import threading
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -150,9 +151,9 @@ def load_clip(
         raise AzeeError(f"{path}: qpos has {a['qpos'].shape[1]} columns; the bundled signer "
                         f"has nq={nq}")  # fmt: skip
     rfps = float(a["fps"])
-    s = sc.load_score(score) if score else None
-    sched = _schedule_of(s, rfps) if s is not None else {}
-    return Clip(a["time"], a["qpos"], rfps, sched, s, path.stem)
+    given = sc.load_score(Path(score)) if score else None
+    sched = _schedule_of(given, rfps) if given is not None else {}
+    return Clip(a["time"], a["qpos"], rfps, sched, given, path.stem)
 
 
 # ---------------------------------------------------------------------------------------
@@ -323,7 +324,7 @@ _PROBE = (
 def _probe(backend: str) -> bool:
     env = {k: v for k, v in os.environ.items() if k != "PYOPENGL_PLATFORM"}
     try:
-        r = subprocess.run([sys.executable, "-c", _PROBE, backend], env=env,
+        r = subprocess.run([sys.executable, "-c", _PROBE, backend], env=env, check=False,
                            capture_output=True, timeout=60)  # fmt: skip
     except (OSError, subprocess.TimeoutExpired):
         return False
@@ -396,7 +397,7 @@ def _camera_id(model: mujoco.MjModel, camera: str) -> int:
 
 def resample(clip: Clip, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """Times ``k / fps`` over the clip and their postures (T', nq), linearly interpolated."""
-    n = int(math.floor(clip.duration * fps + 1e-9)) + 1
+    n = math.floor(clip.duration * fps + 1e-9) + 1
     t = np.arange(n) / fps
     if abs(fps - clip.fps) < 1e-9:
         return t, clip.qpos[:n]
@@ -535,8 +536,8 @@ def render(
     tick = progress or (lambda f: None)
     if suffix == ".mp4":
         _need("imageio_ffmpeg")
-    imageio = _need("imageio.v2") if suffix == ".mp4" else None
-    pil = _need("PIL.Image") if suffix in (".gif", ".png") else None
+    imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
+    pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
     with FrameRenderer(clip, camera=camera, size=size, targets=targets) as fr:
         if suffix == ".png":
             if time is not None:
@@ -563,9 +564,10 @@ def render(
                     w.close()
             else:
                 frames = []
+                quantize = pil.Quantize.MEDIANCUT
                 for k, q in enumerate(qs):
                     im = pil.fromarray(fr.render(q, clip.frame_at(times[k])))
-                    frames.append(im.quantize(colors=128, method=pil.Quantize.MEDIANCUT))
+                    frames.append(im.quantize(colors=128, method=quantize))
                     tick((k + 1) / len(qs))
                 frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
                                duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip

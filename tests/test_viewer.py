@@ -280,7 +280,7 @@ def test_preview_opens_plays_and_closes(display):
     env = dict(os.environ, DISPLAY=display, MUJOCO_GL="glfw")
     r = subprocess.run([sys.executable, "-m", "azee_mj.cli", "preview", str(GOOD),
                         "--max-frames", "4"], env=env, capture_output=True, text=True,
-                       timeout=90)  # fmt: skip
+                       timeout=90, check=False)  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert "preview: 4 viewer updates" in r.stdout
 
@@ -290,3 +290,15 @@ def test_preview_without_display_is_a_clear_error(monkeypatch, capsys):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert main(["preview", str(GOOD), "--max-frames", "1"]) == 2
     assert "preview needs a display" in capsys.readouterr().err
+
+
+def test_no_gl_backend_is_a_clear_error(monkeypatch):
+    monkeypatch.setattr(v, "_BACKEND", None)
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    tried = []
+    monkeypatch.setattr(v, "_probe", lambda b: tried.append(b) or False)
+    with pytest.raises(AzeeError, match="no OpenGL backend for offscreen rendering: tried "
+                                        "MUJOCO_GL=egl .* and MUJOCO_GL=osmesa"):  # fmt: skip
+        v.gl_backend()
+    assert tried == ["egl", "osmesa"]
+    assert "MUJOCO_GL" not in os.environ

@@ -451,18 +451,19 @@ class FrameRenderer:
 
 
 def key_frames(clip: Clip) -> list[tuple[str, int]]:
-    """(label, frame) of the key postures: the middle of each cstr block in time order, or
-    without a score six evenly spaced frames labelled by their time."""
+    """(label, frame) of the key postures: the middle of each cstr block in time order
+    (blocks with the same middle frame share one, their names joined), or without a score
+    six evenly spaced frames labelled by their time."""
     if clip.score is not None:
         root = clip.score.root.path
         blocks = [b for b in clip.score.blocks() if b.kind is sc.BlockKind.CSTR]
         blocks.sort(key=lambda b: (0.5 * (b.start + b.end), b.path))
-        out = []
+        byframe: dict[int, list[str]] = {}  # blocks sharing a middle frame share a tile
         for b in blocks:
             name = b.path[len(root) + 1:] if b.path.startswith(root + ".") else b.path
-            out.append((name, clip.frame_at(0.5 * (b.start + b.end))))
-        if out:
-            return out
+            byframe.setdefault(clip.frame_at(0.5 * (b.start + b.end)), []).append(name)
+        if byframe:
+            return [(", ".join(names), f) for f, names in byframe.items()]
     idx = np.linspace(0, len(clip.time) - 1, min(6, len(clip.time))).round().astype(int)
     return [(f"t = {clip.time[i]:.2f} s", int(i)) for i in idx]
 

@@ -4,6 +4,14 @@ Targets come from forward kinematics of random collision-free postures: 6 to 12 
 each, including perpendicular orientations, two-hand contacts and hand-to-face contacts.
 A contact keyframe is made by first bringing the two sites together from the random posture
 (any posture that meets it proves it reachable), then reading every other target off it.
+
+By default the keyframes form a *sequence*, as the postures of a signed sentence do: each
+truth posture is the previous truth plus a bounded random change of the free joints
+(uniform within +-``STEP`` rad, clipped to the middle 90 % of each arm joint's range and to
+the same middle band as :func:`random_posture` for the trunk and neck, redrawn if it
+penetrates; a contact keyframe is redrawn if reaching the contact moves a joint more than
+``2 * STEP`` from the previous truth), so warm-starting from the previous solution means something. ``sequence=False``
+gives independent random postures.
 """
 
 from __future__ import annotations
@@ -38,21 +46,50 @@ def _joints(sides=("R", "L")):
         "back_1_flex", "back_2_flex", "back_2_rot", "neck_flex", "head_rot")
 
 
+#: Largest change of one free joint between consecutive truth postures of a sequence [rad].
+STEP = 0.6
+
+
+def _box(solver: ik.Solver, arm_pad: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(qpos addresses, lower, upper) of the free joints: arm ranges shrunk by ``arm_pad``
+    of their span at each end, trunk and neck by 35 %."""
+    m = solver.model
+    adr, lo, hi = [], [], []
+    for j in _joints():
+        jid = solver.joint_id(j)
+        a, b = m.jnt_range[jid]
+        pad = (0.35 if j.startswith(("back", "neck", "head")) else arm_pad) * (b - a)
+        adr.append(m.jnt_qposadr[jid])
+        lo.append(a + pad)
+        hi.append(b - pad)
+    return np.array(adr), np.array(lo), np.array(hi)
+
+
 def random_posture(solver: ik.Solver, rng: np.random.Generator) -> np.ndarray:
     """A random collision-free posture: arms anywhere in their ranges (shrunk 10 %)."""
     m, d = solver.model, mujoco.MjData(solver.model)
+    adr, lo, hi = _box(solver, 0.1)
     while True:
         q = solver.natural.copy()
-        for j in _joints():
-            jid = solver.joint_id(j)
-            lo, hi = m.jnt_range[jid]
-            pad = 0.1 * (hi - lo)
-            if j.startswith(("back", "neck", "head")):
-                pad = 0.35 * (hi - lo)
-            q[m.jnt_qposadr[jid]] = rng.uniform(lo + pad, hi - pad)
+        q[adr] = rng.uniform(lo, hi)
         d.qpos[:] = q
         if ik.penetration_depth(m, d) <= 0.0:
             return q
+
+
+def next_posture(solver: ik.Solver, q: np.ndarray, rng: np.random.Generator,
+                 step: float = STEP) -> np.ndarray:
+    """``q`` plus a uniform random change of at most ``step`` [rad] per free joint, clipped
+    to the middle 90 % of the arm ranges (trunk and neck as in :func:`random_posture`),
+    redrawn until collision-free."""
+    m, d = solver.model, mujoco.MjData(solver.model)
+    adr, lo, hi = _box(solver, 0.05)
+    while True:
+        out = q.copy()
+        out[adr] = np.clip(q[adr] + rng.uniform(-step, step, adr.size), lo, hi)
+        d.qpos[:] = out
+        if ik.penetration_depth(m, d) <= 0.0:
+            return out
 
 
 def _fk(solver, q):
@@ -93,15 +130,23 @@ def _read_off(solver, q, rng, n_place, n_orient, with_perp=True):
     return cons
 
 
-def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None) -> list[Keyframe]:
-    """``n`` reachable keyframes: 1/2 free placements, 1/4 two-hand, 1/4 hand-to-face."""
+def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None,
+                   sequence: bool = True) -> list[Keyframe]:
+    """``n`` reachable keyframes: 1/2 free placements, 1/4 two-hand, 1/4 hand-to-face.
+
+    With ``sequence`` (the default) each truth posture is a bounded random change of the
+    previous one (see :func:`next_posture`); otherwise each is an independent random posture.
+    """
     solver = solver or ik.Solver()
     rng = np.random.default_rng(seed)
     out: list[Keyframe] = []
     free = _joints()
     while len(out) < n:
         kind = ("free", "free", "two-hand", "hand-face")[len(out) % 4]
-        q = random_posture(solver, rng)
+        if sequence and out:
+            q = next_posture(solver, out[-1].truth, rng)
+        else:
+            q = random_posture(solver, rng)
         contact = []
         if kind != "free":
             a = rng.choice(HAND_SITES[:4]).format(X="R")
@@ -113,6 +158,8 @@ def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None)
             res = solver.solve(ik.IKProblem(tuple(contact), free), q)
             if not res.converged:
                 continue
+            if sequence and out and np.abs(res.qpos - out[-1].truth).max() > 2 * STEP:
+                continue  # reaching the contact moved too far from the previous posture
             q = res.qpos
         n_cons = int(rng.integers(6, 13)) - len(contact)
         n_place = max(1, n_cons // 2 - 1)

@@ -1,0 +1,108 @@
+"""Realizer speed: real-time factor of a sentence, and how cost grows with duration/blocks.
+
+    python bench/realize.py [--quick]
+
+Builds sentences by chaining the bundled examples (each example's root becomes a `sync`
+child, one after the other), realizes them at 50 fps on one core, and writes
+bench/results/realize.json. The target (issue 4): at least 20x faster than real time for a
+sentence of several signs with both hands, holds and transpaths; cost linear in duration
+and in blocks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from azee_mj import ik, timeline  # noqa: E402
+from azee_mj.score import load_score  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SIGNS = ["bien", "pointing", "arbre", "info-about", "penser"]
+
+
+def sentence(names: list[str]) -> dict:
+    """A score chaining the examples ``names`` (strong side R), 0.1 s apart."""
+    children, t = [], 0.0
+    for i, n in enumerate(names):
+        s = json.loads((ROOT / "examples" / f"{n}.json").read_text())
+        root = s["root"]
+        d = root["end"] - root["start"]
+        children.append({**root, "name": f"S{i}_{root['name']}", "start": t, "end": t + d})
+        t += d + 0.1
+    return {"format": "azee-score", "version": 1, "strong_side": "R",
+            "root": {"name": "SENTENCE", "kind": "sync", "start": 0.0, "end": t, "children": children}}
+
+
+def count_blocks(score) -> int:
+    return sum(1 for b in score.blocks() if b.kind.value != "sync")
+
+
+def run(names, solver, repeats=1):
+    score = load_score(sentence(names))
+    best = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        r = timeline.realize(score, fps=50, solver=solver)
+        dt = time.perf_counter() - t0
+        best = dt if best is None else min(best, dt)
+    return {
+        "signs": names, "duration_s": score.duration, "blocks": count_blocks(score),
+        "frames": len(r.time), "realize_s": best, "realtime_factor": score.duration / best,
+        "ik_problems": r.stats.problems, "key_problems": r.stats.key_problems,
+        "iterations": r.stats.iterations, "not_converged": r.stats.not_converged,
+        "constraints_ok": int(sum(bool(t.ok) for t in r.traces)), "constraints": len(r.traces),
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    solver = ik.Solver()
+    rows = []
+    lengths = [1, 2] if args.quick else [1, 2, 3, 4, 5, 6, 8, 10]
+    for n in lengths:
+        names = [SIGNS[i % len(SIGNS)] for i in range(n)]
+        rows.append(run(names, solver))
+        r = rows[-1]
+        print(f"{n:2d} signs {r['duration_s']:5.2f} s {r['blocks']:3d} blocks: {r['realize_s']:6.3f} s"
+              f" ({r['realtime_factor']:5.1f}x real time), {r['ik_problems']} IK problems,"
+              f" {r['constraints_ok']}/{r['constraints']} ok")
+    d = np.array([r["duration_s"] for r in rows])
+    c = np.array([r["realize_s"] for r in rows])
+    fit = np.polyfit(d, c, 1)
+    resid = c - np.polyval(fit, d)
+    out = {
+        "machine": {"cpu": _cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
+                    "mujoco": mujoco.__version__, "numpy": np.__version__},
+        "rows": rows,
+        "linear_fit": {"seconds_per_score_second": float(fit[0]), "intercept_s": float(fit[1]),
+                       "r2": 1 - float(resid @ resid) / float(((c - c.mean()) ** 2).sum())},
+    }
+    (ROOT / "bench" / "results").mkdir(exist_ok=True)
+    (ROOT / "bench" / "results" / "realize.json").write_text(json.dumps(out, indent=1))
+    print(f"linear fit: {fit[0]:.3f} s per score second, r2 {out['linear_fit']['r2']:.3f}")
+
+
+def _cpu() -> str:
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+if __name__ == "__main__":
+    main()

@@ -67,7 +67,7 @@ def check_poses(
     *,
     penetration_limit: float = PENETRATION_LIMIT,
     range_tol: float = 1e-6,
-    allowed: "frozenset[tuple[str, str]] | dict[int, frozenset]" = frozenset(),
+    allowed: frozenset[tuple[str, str]] | dict[int, frozenset] = frozenset(),
 ) -> PoseReport:
     """Check postures ``qpos`` (nq,) or (T, nq) of ``model``.
 

@@ -47,19 +47,22 @@ def _cmd_check(args) -> int:
             f"{args.rollout}: qpos has {arrays['qpos'].shape[1]} columns; the bundled signer "
             f"has nq={model.nq}"
         )
-    allowed = frozenset()
+    allowed, score, solver = frozenset(), None, None
     if args.score:
+        from azee_mj.ik import Solver
+        from azee_mj.score import load_score
         from azee_mj.timeline import contact_pairs
 
-        allowed = contact_pairs(args.score, arrays["time"])
+        score, solver = load_score(args.score), Solver()
+        allowed = contact_pairs(score, arrays["time"], solver)
     report = check_poses(model, arrays["qpos"], allowed=allowed)
     fps = float(arrays["fps"]) if "fps" in arrays else None
     print(summary(report, fps))
     ok = report.clean
-    if args.score:
+    if score is not None:
         from azee_mj.timeline import residual_summary
 
-        text, within = residual_summary(args.score, arrays)
+        text, within = residual_summary(score, arrays, solver)
         print(text)
         ok = ok and within
     return 0 if ok else 1
@@ -97,9 +100,7 @@ def _cmd_realize(args) -> int:
           f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
           f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within tolerance")
     for t in bad[:5]:
-        scale, unit = (1000.0, "mm") if t.unit == "m" else (180.0 / 3.141592653589793, "deg")
-        print(f"  {t.block} constraint {t.index} ({t.kind}): worst {t.worst * scale:.2f} {unit}"
-              f" (tol {t.tol * scale:.2f} {unit})")
+        print(f"  {t.describe()}")
     return 0
 
 

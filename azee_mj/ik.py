@@ -27,7 +27,6 @@ from __future__ import annotations
 import dataclasses
 import enum
 import time
-from collections.abc import Mapping, Sequence
 
 import mujoco
 import numpy as np
@@ -64,22 +63,22 @@ class BodyAxis:
 class Lin:
     """A linear combination ``sum(c * e)`` of expressions (translate, mid, from, scale, add)."""
 
-    terms: tuple[tuple[float, "Expr"], ...]
+    terms: tuple[tuple[float, Expr], ...]
 
 
 @dataclasses.dataclass(frozen=True)
 class Cross:
     """Cross product ``a x b``."""
 
-    a: "Expr"
-    b: "Expr"
+    a: Expr
+    b: Expr
 
 
 @dataclasses.dataclass(frozen=True)
 class Unit:
     """``a / |a|``."""
 
-    a: "Expr"
+    a: Expr
 
 
 Expr = Const | SitePos | BodyAxis | Lin | Cross | Unit
@@ -92,7 +91,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
 class _Kin:
     """Kinematic quantities of one posture, computed on demand and cached."""
 
-    def __init__(self, solver: "Solver"):
+    def __init__(self, solver: Solver):
         self.s = solver
         self.m, self.d = solver.model, solver.data
         self._site: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -348,7 +347,8 @@ class IKResult:
 # The solver
 # ---------------------------------------------------------------------------------------
 
-MU0, MU_DOWN, MU_UP = 1e-3, 0.3, 5.0
+#: Initial Levenberg-Marquardt damping, relative to the mean diagonal of J^T J.
+MU0 = 1e-3
 #: Largest change of one joint in one iteration [rad or m] (a trust region).
 MAX_STEP = 0.4
 #: Weight of the natural-posture rows (per radian; a constraint row is 1 at its tolerance).
@@ -505,10 +505,11 @@ class Solver:
         return pairs
 
     # -- rows ---------------------------------------------------------------------------
-    def _plan(self, problem: IKProblem) -> "_Plan":
+    def _plan(self, problem: IKProblem) -> _Plan:
+        """The problem compiled for this solver (rows, buffers, free dofs)."""
         return _Plan(self, problem)
 
-    def _evaluate(self, q, plan: "_Plan"):
+    def _evaluate(self, q, plan: _Plan):
         """Residual rows (k,), Jacobian (k, len(free)), per-constraint row norms, depth."""
         m, d = self.model, self.data
         d.qpos[:] = q
@@ -551,7 +552,6 @@ class Solver:
         with ``converged=False``.
         """
         t0 = time.perf_counter()
-        m = self.model
         q_start = np.clip(self.natural if q0 is None else np.asarray(q0, float),
                           self.lower, self.upper)  # fmt: skip
         cons = problem.constraints
@@ -561,7 +561,7 @@ class Solver:
         history: list[float] = []
         iters = 0
         attempt = 0
-        starts = [q_start]
+        start = q_start
         while True:
             # First with the natural-posture preference, then without it, so that it picks
             # among the solutions but never biases the constraints.
@@ -569,11 +569,10 @@ class Solver:
                 # Self-collision can trap the iteration in a corner: reach the constraints
                 # with the body transparent, then let the collision rows push parts apart.
                 plan.collide = False
-                q, cost, ok, n_it = self._lm(starts[-1], plan, history, POSTURE)
+                start, _, _, n_it = self._lm(start, plan, history, POSTURE)
                 plan.collide = True
                 iters += n_it
-                starts[-1] = q
-            q, cost, ok, n_it = self._lm(starts[-1], plan, history, POSTURE)
+            q, cost, ok, n_it = self._lm(start, plan, history, POSTURE)
             iters += n_it
             if not ok:
                 q, cost, ok, n_it = self._lm(q, plan, history)
@@ -583,7 +582,7 @@ class Solver:
             if ok or attempt >= self.restarts:
                 break
             attempt += 1
-            starts.append(self._restart_point(attempt, q_start, best[0], free))
+            start = self._restart_point(attempt, q_start, free)
         q = best[0]
         residuals, depth = plan.report(q)
         hard = [r for r, c in zip(residuals, cons) if not getattr(c, "soft", False)]
@@ -594,7 +593,7 @@ class Solver:
             history=np.asarray(history),
         )  # fmt: skip
 
-    def _restart_point(self, attempt, q_start, q_best, free):
+    def _restart_point(self, attempt, q_start, free):
         """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
         from the natural posture, later ones from random postures halfway between it and a
         uniform sample of the joint ranges."""
@@ -673,23 +672,6 @@ class Solver:
                 break
         done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
         return q, cost, done, it
-
-    def report(self, cons, q, joined=frozenset()) -> tuple[tuple[Residual, ...], float]:
-        """Per-constraint residuals and deepest penetration [m] of posture ``q``."""
-        m, d = self.model, self.data
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
-        k = _Kin(self)
-        out = []
-        for c in cons:
-            if isinstance(c, Place):
-                unit = "m"
-            elif isinstance(c, JointTarget):
-                unit = "m" if m.jnt_type[self.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE else "rad"
-            else:
-                unit = "rad"
-            out.append(Residual(c.label, type(c).__name__.lower(), c.residual(k), c.tol, unit))
-        return tuple(out), penetration_depth(m, d, joined)
 
     # -- equality constraints --------------------------------------------------------------
     def configure_equalities(self, problem: IKProblem, data: mujoco.MjData | None = None) -> int:
@@ -780,7 +762,7 @@ class _Plan:
         row = 0
         for c in problem.constraints:
             fn, k, scaled = self._compile(c)
-            self.items.append((fn, row, row + k))
+            self.items.append((fn, row, row + k, scaled))
             if not getattr(c, "soft", False):
                 self.hard.append((row, row + k))
             inv += [1.0 if scaled else 1.0 / c.tol] * k
@@ -790,13 +772,13 @@ class _Plan:
         self.r = np.zeros(row)
         self.tmp = np.empty((3, m.nv))
         self.cbuf1, self.cbuf2 = np.empty((3, m.nv)), np.empty((3, m.nv))
-        for c, (_, a, b) in zip(problem.constraints, self.items):
+        for c, (_, a, _, _) in zip(problem.constraints, self.items):
             if isinstance(c, JointTarget):
                 self.J[a, m.jnt_dofadr[solver.joint_id(c.joint)]] = 1.0
 
     def _compile(self, c):
         """(fn(r_block, J_block), number of rows, rows already scaled by 1/tol)."""
-        s, m, d, tmp = self.s, self.m, self.d, None
+        s, m, d = self.s, self.m, self.d
         if isinstance(c, Place) and isinstance(c.target, (Const, SitePos)):
             sid = s.site_id(c.site)
             if isinstance(c.target, Const):
@@ -843,21 +825,19 @@ class _Plan:
                 r[0] = d.qpos[adr] - value
 
             return joint, 1, False
-        k = 6 if isinstance(c, Look) and len(c.eyes) == 2 else (1 if isinstance(c, Orient)
-                                                               and c.rel is Rel.PERP else 3)
-
-        def generic(r, J):
-            rr, jj = c.rows(_Kin(s))
-            r[:] = rr
-            J[:] = jj
-
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
+        else:
+            k = 1 if isinstance(c, Orient) and c.rel is Rel.PERP else 3
+
+        def generic(r, J):
+            r[:], J[:] = c.rows(_Kin(s))
+
         return generic, k, True
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``."""
-        for fn, a, b in self.items:
+        for fn, a, b, _ in self.items:
             fn(self.r[a:b], self.J[a:b])
         return self.r * self.inv, self.J * self.inv[:, None]
 
@@ -869,10 +849,10 @@ class _Plan:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         out = []
-        for c, (fn, a, b) in zip(self.cons, self.items):
+        for c, (fn, a, b, generic) in zip(self.cons, self.items):
             fn(self.r[a:b], self.J[a:b])
             r = self.r[a:b]
-            if fn.__name__ == "generic":
+            if generic:
                 value = c.residual(_Kin(self.s))
             elif isinstance(c, Orient):
                 if c.rel is Rel.PERP:
@@ -882,9 +862,7 @@ class _Plan:
             else:
                 value = float(np.sqrt(r @ r))
             unit = "rad"
-            if isinstance(c, Place):
-                unit = "m"
-            elif isinstance(c, JointTarget) and self.slide[c.joint]:
+            if isinstance(c, Place) or isinstance(c, JointTarget) and self.slide[c.joint]:
                 unit = "m"
             out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
         return tuple(out), penetration_depth(m, d, self.joined)

@@ -97,6 +97,12 @@ class ConstraintTrace:
     def ok(self) -> bool:
         return self.worst <= self.tol
 
+    def describe(self) -> str:
+        """``BLOCK constraint i (kind): worst X mm (tol Y mm)``, in mm or degrees."""
+        k, u = (1000.0, "mm") if self.unit == "m" else (float(np.degrees(1.0)), "deg")
+        return (f"{self.block} constraint {self.index} ({self.kind}): worst {self.worst * k:.2f}"
+                f" {u} (tol {self.tol * k:.2f} {u})")
+
 
 @dataclasses.dataclass(frozen=True)
 class SolveStats:
@@ -269,7 +275,7 @@ class _Compiler:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
         if isinstance(c, sc.Place):
             out = self.site_tracks(self.site(c.site))
-            if isinstance(c.at, sc.PSite) and not c.at.ref.locus:  # a contact: both parts move
+            if _is_contact(c):  # both parts move
                 out |= self.site_tracks(self.site(c.at.ref))
             return out
         if isinstance(c, sc.Orient):
@@ -328,13 +334,15 @@ class _Realizer:
         self.results: list[ik.IKResult] = []
         self.n_key = 0
         self.contacts = self._contact_windows()
+        self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
+                           for b in range(self.m.nbody)]  # fmt: skip
 
     def _contact_windows(self) -> list[tuple[float, float, int, int]]:
         """(start, end, body, body) of every contact constraint of the score."""
         out = []
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
-                if isinstance(c, sc.Place) and isinstance(c.at, sc.PSite) and not c.at.ref.locus:
+                if _is_contact(c):
                     ids = [int(self.m.site_bodyid[self.solver.site_id(self.comp.site(r))])
                            for r in (c.site, c.at.ref)]
                     out.append((b.start, b.end, ids[0], ids[1]))
@@ -350,8 +358,8 @@ class _Realizer:
 
     # -- helpers ---------------------------------------------------------------------------
     def _solve(self, cons, free, q0, t: float) -> ik.IKResult:
-        name = lambda b: mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)  # noqa: E731
-        touching = tuple((name(a), name(b)) for a, b in self._allowed_at(t) if a < b)
+        names = self.body_names
+        touching = tuple((names[a], names[b]) for a, b in self._allowed_at(t) if a < b)
         res = self.solver.solve(ik.IKProblem(tuple(cons), tuple(free), touching, q0), q0)
         self.results.append(res)
         return res
@@ -431,8 +439,9 @@ class _Realizer:
             if not items:
                 continue
             if self.mode is Mode.FLATTENED:
-                groups = [set().union(*(tr for _, _, tr, _ in items))]
-                groups[0] |= set(self.track_joints) - {"face", "eyes"} if groups[0] else set()
+                # One whole-body problem: every track but the face and eyes is free.
+                driven = set().union(*(tr for _, _, tr, _ in items))
+                groups = [driven | (set(self.track_joints) - {"face", "eyes"})]
             else:
                 groups = _components([tr for _, _, tr, _ in items])
             # Hand shapes and face first: a placed fingertip depends on its hand's shape.
@@ -525,7 +534,7 @@ class _Realizer:
                 holds[-1][1] = k.end
             else:
                 holds.append([k.start, k.end, qk])
-        prev_q, prev_end = self.home[dofs], 0.0
+        prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
         first = True
         for a, b, qk in holds:
             if self.mode is Mode.FLATTENED:
@@ -554,6 +563,8 @@ class _Realizer:
         """Frames where a blending track still has constraints become IK problems."""
         tp = [b for b in self.blocks if b.kind is sc.BlockKind.TRANSPATH]
         paths = {b.path: self._transpath_points(b, q, times) for b in tp}
+        sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
+        limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
         prev = None
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
@@ -567,13 +578,10 @@ class _Realizer:
                     cons += [c for c in keep if c not in cons]
                     free |= set(key.free)
             for b in tp:
-                if b.start <= t < b.end:
-                    site = self.comp.site(b.transpath_site)
-                    if self.comp.site_tracks(site) & tracks:
-                        cons.append(ik.Place(site, ik.Const(tuple(paths[b.path][f])), 1e-3,
-                                             f"{b.path}@path"))  # fmt: skip
-                        free |= {j for tr in self.comp.site_tracks(site)
-                                 for j in self.track_joints[tr]}  # fmt: skip
+                if b.start <= t < b.end and limbs[b.path] & tracks:
+                    cons.append(ik.Place(sites[b.path], ik.Const(tuple(paths[b.path][f])), 1e-3,
+                                         f"{b.path}@path"))  # fmt: skip
+                    free |= {j for tr in limbs[b.path] for j in self.track_joints[tr]}
             if not cons:
                 if tracks and self._penetrates(q[f], t):
                     # A blend that would pass through the body: push it out, staying close.
@@ -690,7 +698,6 @@ class _Realizer:
     def traces(self, q: np.ndarray, times: np.ndarray) -> tuple[ConstraintTrace, ...]:
         out = []
         d = self.solver.data
-        kin = ik._Kin(self.solver)
         for b in self.blocks:
             if b.kind is not sc.BlockKind.CSTR:
                 continue
@@ -702,8 +709,7 @@ class _Realizer:
                 for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end - 1e-9)):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
-                    kin._site.clear()
-                    vals[f] = ic.residual(kin)
+                    vals[f] = ic.residual(ik._Kin(self.solver))
                 unit = "m" if isinstance(ic, ik.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
                                            unit, b.start, b.end, vals))  # fmt: skip
@@ -713,6 +719,11 @@ class _Realizer:
 def _violation(res: ik.IKResult) -> float:
     """How far a result is from its tolerances (sum of value / tol over the violated)."""
     return sum(r.value / r.tol for r in res.residuals if not r.ok) + res.penetration / 1e-3
+
+
+def _is_contact(c) -> bool:
+    """A placement of a body site at another body site (both parts move to touch)."""
+    return isinstance(c, sc.Place) and isinstance(c.at, sc.PSite) and not c.at.ref.locus
 
 
 def _components(track_sets: list[set[str]]) -> list[set[str]]:
@@ -853,24 +864,24 @@ def realize(
     return Rollout(fps, mode, times, q, site_names, site_pos, r.schedule(), traces, stats)
 
 
-def contact_pairs(score: sc.Score | str, times: np.ndarray) -> dict[int, frozenset[tuple[str, str]]]:
-    """Frame -> body-name pairs that a contact constraint active then brings together."""
-    from azee_mj.model import load_model
-
+def schedule(score: sc.Score | str, solver: ik.Solver | None = None
+             ) -> dict[str, tuple[TrackInterval, ...]]:
+    """Per track, the intervals blocks drive it, without solving anything."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
-    m = load_model()
-    comp = _Compiler(m, DEFAULT_MAP)
+    return _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK).schedule()
+
+
+def contact_pairs(score: sc.Score | str, times: np.ndarray,
+                  solver: ik.Solver | None = None) -> dict[int, frozenset[tuple[str, str]]]:
+    """Frame -> body-name pairs that a contact constraint active then brings together."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    r = _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK)
     out: dict[int, set[tuple[str, str]]] = {}
-    for b in score.blocks():
-        for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
-            if isinstance(c, sc.Place) and isinstance(c.at, sc.PSite) and not c.at.ref.locus:
-                names = []
-                for ref in (c.site, c.at.ref):
-                    sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, comp.site(ref))
-                    names.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, m.site_bodyid[sid]))
-                for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end)):
-                    out.setdefault(int(f), set()).add((names[0], names[1]))
+    for start, end, x, y in r.contacts:
+        for f in np.flatnonzero((times >= start - 1e-9) & (times < end)):
+            out.setdefault(int(f), set()).add((r.body_names[x], r.body_names[y]))
     return {f: frozenset(v) for f, v in out.items()}
 
 
@@ -883,20 +894,18 @@ def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
     return r.traces(np.asarray(qpos, float), np.arange(len(qpos)) / fps)
 
 
-def residual_summary(score: sc.Score | str, arrays: Mapping[str, np.ndarray]) -> tuple[str, bool]:
+def residual_summary(score: sc.Score | str, arrays: Mapping[str, np.ndarray],
+                     solver: ik.Solver | None = None) -> tuple[str, bool]:
     """A readable residual summary of a rollout's arrays against ``score``, and whether
     every constraint is within its tolerance."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     # A trill moves its block's posture on purpose: its block's residuals are not checked.
     trilled = {b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)}
-    traces = [t for t in score_traces(score, arrays["qpos"], float(arrays["fps"]))
+    traces = [t for t in score_traces(score, arrays["qpos"], float(arrays["fps"]), solver)
               if t.block not in trilled]  # fmt: skip
     bad = [t for t in traces if not t.ok]
     lines = [f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"
              + (f" ({len(trilled)} block(s) with a trill not checked)" if trilled else "")]
-    for t in bad[:8]:
-        k, u = (1000.0, "mm") if t.unit == "m" else (np.degrees(1.0), "deg")
-        lines.append(f"  {t.block} constraint {t.index} ({t.kind}): worst {t.worst * k:.2f} {u}"
-                     f" > tol {t.tol * k:.2f} {u}")
+    lines += [f"  {t.describe()}" for t in bad[:8]]
     return "\n".join(lines), not bad

@@ -110,8 +110,8 @@ def _schedule_of(score: sc.Score, fps: float) -> dict:
     """The per-track schedule of a score without solving it (reuses the realizer's)."""
     from azee_mj import timeline
 
-    r = timeline._Realizer(score, _solver(), fps, timeline.Mode.MULTITRACK)
-    return {t: tuple((i.block, i.start, i.end) for i in v) for t, v in r.schedule().items()}
+    sched = timeline.schedule(score, _solver())
+    return {t: tuple((i.block, i.start, i.end) for i in v) for t, v in sched.items()}
 
 
 _SOLVER: ik.Solver | None = None

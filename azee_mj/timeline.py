@@ -271,12 +271,28 @@ class _Compiler:
         limb = {t for t in tracks if not t.startswith(("hand", "spine"))}
         return limb or tracks
 
+    def partner_sites(self, c) -> tuple[str, ...]:
+        """Model sites of the other part when placement ``c`` brings two parts together.
+
+        A placement at a bare body site is a contact: both parts move to meet. A placement
+        at a point built from sites of an arm or hand (``@I_TIP(w)`` translated, the middle
+        of two fingertips) also moves that arm, since the point rides on it; a point built
+        from the head or trunk is a location that stays where the body holds it.
+        """
+        if not isinstance(c, sc.Place):
+            return ()
+        if isinstance(c.at, sc.PSite):
+            return () if c.at.ref.locus else (self.site(c.at.ref),)
+        own = self.site_tracks(self.site(c.site))
+        return tuple(s for s in map(self.site, _point_sites(c.at))
+                     if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
         if isinstance(c, sc.Place):
             out = self.site_tracks(self.site(c.site))
-            if _is_contact(c):  # both parts move
-                out |= self.site_tracks(self.site(c.at.ref))
+            for s in self.partner_sites(c):  # both parts move
+                out |= self.site_tracks(s)
             return out
         if isinstance(c, sc.Orient):
             body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
@@ -342,10 +358,10 @@ class _Realizer:
         out = []
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
-                if _is_contact(c):
-                    ids = [int(self.m.site_bodyid[self.solver.site_id(self.comp.site(r))])
-                           for r in (c.site, c.at.ref)]
-                    out.append((b.start, b.end, ids[0], ids[1]))
+                for s in self.comp.partner_sites(c):
+                    body = self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))]
+                    other = self.m.site_bodyid[self.solver.site_id(s)]
+                    out.append((b.start, b.end, int(body), int(other)))
         return out
 
     def _allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
@@ -721,9 +737,15 @@ def _violation(res: ik.IKResult) -> float:
     return sum(r.value / r.tol for r in res.residuals if not r.ok) + res.penetration / 1e-3
 
 
-def _is_contact(c) -> bool:
-    """A placement of a body site at another body site (both parts move to touch)."""
-    return isinstance(c, sc.Place) and isinstance(c.at, sc.PSite) and not c.at.ref.locus
+def _point_sites(e) -> list[sc.SiteRef]:
+    """Body sites (not loci) a point expression is built from."""
+    if isinstance(e, sc.PSite):
+        return [] if e.ref.locus else [e.ref]
+    if isinstance(e, sc.PTranslate):
+        return _point_sites(e.p)
+    if isinstance(e, sc.PMid):
+        return _point_sites(e.p) + _point_sites(e.q)
+    return []
 
 
 def _components(track_sets: list[set[str]]) -> list[set[str]]:
@@ -872,7 +894,7 @@ def schedule(score: sc.Score | str, solver: ik.Solver | None = None
     return _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK).schedule()
 
 
-def contact_pairs(score: sc.Score | str, times: np.ndarray,
+def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
                   solver: ik.Solver | None = None) -> dict[int, frozenset[tuple[str, str]]]:
     """Frame -> body-name pairs that a contact constraint active then brings together."""
     if not isinstance(score, sc.Score):

@@ -1,8 +1,6 @@
 """Every bundled example score realizes within tolerance and without penetration.
 
-Realized at 25 fps to keep the suite fast. A test marked ``xfail(strict=True)`` fails
-because of a known realizer problem named in its reason (see examples/README.md); it
-turns into an error as soon as the realizer is fixed, so the mark must then be removed.
+Realized at 25 fps to keep the suite fast.
 """
 
 from __future__ import annotations
@@ -11,6 +9,7 @@ import pathlib
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from azee_mj import ik
@@ -22,25 +21,10 @@ EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 NAMES = sorted(p.stem for p in EXAMPLES.glob("*.json"))
 FPS = 25.0
 
-#: Examples that fail because of a realizer problem (exact reasons; see examples/README.md).
-KNOWN = {
-    "armoire": "solver: HANDS_CONTACT (index tips touching, flat hands, palms down) stops "
-    "1.15 mm short: the longer middle fingers must pass each other and the solve ends in a "
-    "local minimum",
-    "nicht-sondern": "solver: the same HANDS_CONTACT local minimum in its wardrobe part "
-    "(3 mm, and PALMS_DOWN 2.5 deg in the same posture)",
-}
-
 
 @pytest.fixture(scope="module")
 def model():
     return load_model()
-
-
-def _cases():
-    for n in NAMES:
-        marks = [pytest.mark.xfail(strict=True, reason=KNOWN[n])] if n in KNOWN else []
-        yield pytest.param(n, marks=marks, id=n)
 
 
 def test_examples_exist():
@@ -48,11 +32,8 @@ def test_examples_exist():
     assert len(NAMES) >= 7
 
 
-@pytest.mark.parametrize("name", list(_cases()))
+@pytest.mark.parametrize("name", NAMES)
 def test_example_realizes_within_tolerance(name, model):
-    # A fresh solver per example: a Solver reused across realize() calls carries state from
-    # one score to the next (pointing.json realized after armoire.json on the same solver
-    # misses IX_R by 52 mm; alone it is within tolerance), a realizer problem of its own.
     path = EXAMPLES / f"{name}.json"
     rollout = realize(str(path), fps=FPS, solver=ik.Solver())
     bad = [f"{t.block}#{t.index} {t.kind} worst {t.worst:.4g} {t.unit} > tol {t.tol:.4g}"
@@ -63,6 +44,15 @@ def test_example_realizes_within_tolerance(name, model):
         (round(p.frame / FPS, 3), p.geom1, p.geom2, round(p.depth * 1000, 2))
         for p in report.penetrations[:5]
     ]
+
+
+def test_a_reused_solver_gives_the_same_motion():
+    # A solve depends only on its problem and start, not on what the solver did before.
+    fresh = realize(str(EXAMPLES / "pointing.json"), fps=FPS, solver=ik.Solver())
+    solver = ik.Solver()
+    realize(str(EXAMPLES / "armoire.json"), fps=FPS, solver=solver)
+    again = realize(str(EXAMPLES / "pointing.json"), fps=FPS, solver=solver)
+    np.testing.assert_array_equal(again.qpos, fresh.qpos)
 
 
 @pytest.mark.parametrize("name", NAMES)

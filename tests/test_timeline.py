@@ -192,6 +192,35 @@ def test_one_hand_moves_while_the_other_holds_still(solver):
     assert all(t.ok for t in multi.traces)
 
 
+def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
+    # The strong tip placed beside the weak one (a point riding on the weak arm): both arms
+    # are one problem, and their index tips may touch; the forehead-relative point of the
+    # weak tip does not move the head.
+    beside = {"translate": "@I_TIP(w)", "by": {"scale": "lat(s)", "by": 0.0136}}
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "TOP", "kind": "cstr", "start": 0, "end": 0.6, "constraints": [
+            {"type": "morph", "id": "flat", "weight": 1.0, "side": "s"},
+            {"type": "morph", "id": "flat", "weight": 1.0, "side": "w"},
+            {"type": "place", "site": "@I_TIP(w)",
+             "at": {"translate": "@FH", "by": {"scale": "fwd", "by": 0.2}}},
+            {"type": "place", "site": "@I_TIP(s)", "at": beside},
+            {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along", "vector": "down"},
+            {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "down"}]},
+    }  # fmt: skip
+    rollout = timeline.realize(score, solver=solver)
+    tracks = {k for k, v in rollout.schedule.items() if v}
+    assert {"arm_R", "arm_L", "hand_R", "hand_L"} <= tracks and "head" not in tracks
+    assert [t.describe() for t in rollout.traces if not t.ok] == []
+    gap = _site(rollout, "I_TIP_R")[-1] - _site(rollout, "I_TIP_L")[-1]
+    np.testing.assert_allclose(gap, [0.0, -0.0136, 0.0], atol=1e-3)
+    head = _dofs(solver, "head")
+    assert np.abs(rollout.qpos[:, head] - rollout.qpos[0, head]).max() == 0.0
+    allowed = timeline.contact_pairs(load_score(score), rollout.time, solver)
+    assert set(allowed) == set(range(len(rollout.time) - 1))
+    assert {tuple(sorted(p)) for v in allowed.values() for p in v} == {("index_L_3", "index_R_3")}
+
+
 def test_flattened_mode_jerks_a_track_at_another_tracks_key(solver):
     score = _two_track_score()
     score["root"]["children"].append(

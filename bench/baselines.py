@@ -131,7 +131,7 @@ class MinkSolver:
 
     def tasks(self, problem: ik.IKProblem):
         mink, s = self.mink, self.s
-        out, checks = [], []
+        out = []
         for c in problem.constraints:
             if isinstance(c, ik.Place) and isinstance(c.target, ik.Const):
                 t = mink.FrameTask(c.site, "site", position_cost=1.0 / c.tol, orientation_cost=0.0)

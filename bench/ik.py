@@ -28,6 +28,7 @@ import argparse  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -76,6 +77,14 @@ def machine() -> dict:
         "qpsolvers": ver("qpsolvers"), "platform": platform.platform(),
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
     }  # fmt: skip
+
+
+def _git() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, text=True,
+                              capture_output=True, check=True).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
 
 
 def score(solver: ik.Solver, kf, q: np.ndarray, t: float, iters: int) -> dict:
@@ -208,7 +217,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--quick", action="store_true", help="30 keyframes, write nothing")
+    ap.add_argument("--quick", action="store_true", help="the first 30 keyframes, write nothing")
+    ap.add_argument("--regenerate", action="store_true",
+                    help=f"make the keyframe set anew and store it in {problems.DATA.name}")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--methods", default="ours-warm,ours-cold,mink-warm,sim-warm")
     args = ap.parse_args(argv)
@@ -216,12 +227,13 @@ def main(argv=None) -> int:
     out = args.out or (None if args.quick else HERE / "results" / "ik.json")
     methods = args.methods.split(",")
 
-    solver = ik.Solver()
-    t0 = time.perf_counter()
-    kfs = problems.make_keyframes(n, seed=args.seed, solver=solver, sequence=True)
-    t_gen = time.perf_counter() - t0
-    print(f"{n} keyframes in {t_gen:.1f} s", file=sys.stderr)
-    # A fresh solver for the runs (same seed), so generation leaves no state behind.
+    if args.regenerate or not problems.DATA.exists():
+        t0 = time.perf_counter()
+        kfs = problems.make_keyframes(args.n, seed=args.seed, solver=ik.Solver(), sequence=True)
+        problems.save_keyframes(kfs, n=args.n, seed=args.seed, sequence=True,
+                                made_with=f"azee_mj solver, git {_git()}")  # fmt: skip
+        print(f"{args.n} keyframes made in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    kfs = problems.load_keyframes()[:n]
     solver = ik.Solver()
 
     records, summary, extra, extra_counts = {}, {}, {}, {}
@@ -269,7 +281,7 @@ def main(argv=None) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
         doc = {
             "machine": machine(), "n": n, "seed": args.seed, "sequence": True,
-            "generation_s": t_gen,
+            "keyframes": f"bench/data/{problems.DATA.name}",
             "settings": {
                 "success": "every constraint within 1 mm / 1 deg, penetration <= 1 mm "
                            "outside contact pairs",

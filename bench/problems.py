@@ -17,6 +17,8 @@ gives independent random postures.
 from __future__ import annotations
 
 import dataclasses
+import json
+import pathlib
 
 import mujoco
 import numpy as np
@@ -166,3 +168,56 @@ def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None,
         cons = contact + _read_off(solver, q, rng, n_place, n_cons - n_place)
         out.append(Keyframe(kind, ik.IKProblem(tuple(cons), free), q))
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# The stored set: generating contact keyframes uses a solver, so the benchmark reads a set
+# written once to JSON and stays the same while the solver changes.
+# ---------------------------------------------------------------------------------------
+
+DATA = pathlib.Path(__file__).resolve().parent / "data" / "keyframes.json"
+
+
+def _expr(e) -> dict:
+    if isinstance(e, ik.Const):
+        return {"const": list(e.value)}
+    if isinstance(e, ik.SitePos):
+        return {"site": e.site}
+    raise TypeError(f"not stored: {e!r}")
+
+
+def _unexpr(o: dict):
+    return ik.Const(tuple(o["const"])) if "const" in o else ik.SitePos(o["site"])
+
+
+def _cons(c) -> dict:
+    if isinstance(c, ik.Place):
+        return {"place": c.site, "target": _expr(c.target), "tol": c.tol, "label": c.label}
+    if isinstance(c, ik.Orient):
+        return {"orient": c.body, "local": list(c.local), "rel": c.rel.value,
+                "vector": _expr(c.vector), "tol": c.tol, "label": c.label}  # fmt: skip
+    raise TypeError(f"not stored: {c!r}")
+
+
+def _uncons(o: dict):
+    if "place" in o:
+        return ik.Place(o["place"], _unexpr(o["target"]), o["tol"], o["label"])
+    return ik.Orient(o["orient"], tuple(o["local"]), ik.Rel(o["rel"]), _unexpr(o["vector"]),
+                     o["tol"], o["label"])  # fmt: skip
+
+
+def save_keyframes(kfs: list[Keyframe], path=DATA, **meta) -> None:
+    """Write ``kfs`` (and ``meta``, e.g. how they were made) to JSON."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [{"kind": k.kind, "free_joints": list(k.problem.free_joints),
+             "constraints": [_cons(c) for c in k.problem.constraints],
+             "truth": [float(x) for x in k.truth]} for k in kfs]  # fmt: skip
+    path.write_text(json.dumps({"meta": meta, "keyframes": rows}) + "\n")
+
+
+def load_keyframes(path=DATA) -> list[Keyframe]:
+    """The stored keyframes (see :func:`save_keyframes`)."""
+    rows = json.loads(path.read_text())["keyframes"]
+    return [Keyframe(r["kind"], ik.IKProblem(tuple(_uncons(c) for c in r["constraints"]),
+                                             tuple(r["free_joints"])), np.array(r["truth"]))
+            for r in rows]  # fmt: skip

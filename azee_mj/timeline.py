@@ -350,6 +350,7 @@ class _Realizer:
         self.results: list[ik.IKResult] = []
         self.n_key = 0
         self.contacts = self._contact_windows()
+        self._moved_cache: dict = {}
         self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
                            for b in range(self.m.nbody)]  # fmt: skip
 
@@ -531,13 +532,22 @@ class _Realizer:
         names = list(self.track_joints)
         for ti, t in enumerate(names):
             d = self.track_dofs[t]
-            q[:, d], moving[:, ti] = self._track_curve(keys[t], times, d)
+            q[:, d], moving[:, ti] = self._track_curve(keys[t], times, d, self._carried(t, keys))
         if self.mode is Mode.FLATTENED:
             return self._flat_transpaths(q, times)
         return self._constrained_blends(q, times, moving, names, keys)
 
-    def _track_curve(self, tkeys: list[_Key], times: np.ndarray, dofs: np.ndarray):
-        """Joint values (T, len(dofs)) of one track and a (T,) flag where it blends."""
+    def _carried(self, track: str, keys: dict[str, list[_Key]]) -> list[float]:
+        """End times [s] of other tracks' keys with a constraint that names a body this
+        track moves (a hand held in front of the chin is carried by the head track)."""
+        return sorted(k.end for t, tk in keys.items() if t != track for k in tk
+                      if any(track in self._moved_by(c) for c in k.cons))  # fmt: skip
+
+    def _track_curve(self, tkeys: list[_Key], times: np.ndarray, dofs: np.ndarray,
+                     carried: list[float] = ()):  # fmt: skip
+        """Joint values (T, len(dofs)) of one track and a (T,) flag where it blends. A blend
+        starts no earlier than the end of a key of another track that this track carries
+        (``carried``, end times), so that it does not move a target while it is held."""
         out = np.tile(self.home[dofs], (len(times), 1))
         blend = np.zeros(len(times), bool)
         if not tkeys:
@@ -566,6 +576,7 @@ class _Realizer:
                         w0 = max(0.0, a - max(min(a, MAX_BLEND), need))
                 else:  # no gap: blend at the end of the previous hold
                     w0, w1 = max(prev_start, a - need), a
+                w0 = max([w0] + [e for e in carried if e <= w1 + 1e-9])
             sel = (times >= w0) & (times < w1)
             if w1 > w0:
                 u = _minjerk((times[sel] - w0) / (w1 - w0))[:, None]
@@ -615,6 +626,14 @@ class _Realizer:
             q[f] = res.qpos
             prev = res.qpos
         return q
+
+    def _moved_by(self, c) -> set[str]:
+        """Tracks whose joints move a body that IK constraint ``c`` names."""
+        if c not in self._moved_cache:
+            bodies = self.solver._bodies_of(c)
+            self._moved_cache[c] = set().union(
+                *(self.comp.body_tracks(b, own_only=False) for b in bodies))
+        return self._moved_cache[c]
 
     def _soft_targets(self, qf: np.ndarray, joints) -> list[ik.JointTarget]:
         adr = self.m.jnt_qposadr

@@ -221,6 +221,28 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     assert {tuple(sorted(p)) for v in allowed.values() for p in v} == {("index_L_3", "index_R_3")}
 
 
+def test_the_head_waits_for_a_hand_held_at_the_chin(solver):
+    # The thumb tip holds in front of the chin until 1.0 s and the head turns right from
+    # 1.1 s: the head's blend, which would start 0.6 s ahead, waits for the hold to end.
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "S", "kind": "sync", "start": 0, "end": 1.6, "children": [
+            {"name": "K", "kind": "cstr", "start": 0.2, "end": 1.0, "constraints": [
+                {"type": "place", "site": "@T_TIP(s)",
+                 "at": {"translate": "@CH", "by": {"scale": "fwd", "by": 0.06}}}]},
+            {"name": "TURN", "kind": "cstr", "start": 1.1, "end": 1.6, "constraints": [
+                {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along",
+                 "vector": [1.0, -0.6, 0.0]}]},
+        ]},
+    }  # fmt: skip
+    rollout = timeline.realize(score, solver=solver)
+    head = _dofs(solver, "head")
+    held, turn = _frames(rollout, 0.0, 1.0), _frames(rollout, 1.0, 1.1)
+    assert np.abs(rollout.qpos[held][:, head] - rollout.qpos[0, head]).max() == 0.0
+    assert np.abs(rollout.qpos[turn[-1], head] - rollout.qpos[0, head]).max() > 0.2
+    assert [t.describe() for t in rollout.traces if not t.ok] == []
+
+
 def test_flattened_mode_jerks_a_track_at_another_tracks_key(solver):
     score = _two_track_score()
     score["root"]["children"].append(

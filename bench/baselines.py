@@ -14,6 +14,10 @@ mink (differential IK QP, https://github.com/kevinzakka/mink):
     ``mink.Task`` (error ``a . v``, Jacobian ``v . (-[a]x J_rot)``);
   - joint limits: ``ConfigurationLimit``; self-collision: ``CollisionAvoidanceLimit`` over
     every pair of the signer's colliding geoms except the pairs a contact brings together;
+  - step size: a ``VelocityLimit`` of ``MINK_MAX_STEP`` rad per iteration on every joint, as
+    mink's collision-avoidance examples pair the collision limit with a velocity limit: the
+    collision limit is a linearisation, and unbounded steps (up to 2 rad per iteration
+    here) jump geoms through each other in one iteration;
   - joints other than the free ones: ``DofFreezingTask`` as an equality constraint.
   Costs are 1/tolerance per row (as in our solver), QP solver daqp, iterations until every
   constraint is within tolerance or 200 iterations, or until the QP is infeasible
@@ -38,11 +42,19 @@ import numpy as np
 from azee_mj import ik
 
 MINK_MAX_ITER = 200
-MINK_DT = 0.01  # the QP's step is dq = v * dt; dt only scales the limits' velocity bounds
-MINK_DAMPING = 1.0  # Levenberg-Marquardt damping on the QP Hessian (rows scaled 1/tol); 1.0 solved
-# 14 of 30 quick keyframes against 12 with 1e-3
-#: mink's collision limit: geoms closer than this are constrained not to approach [m].
-MINK_DETECTION = 0.01
+#: The QP's step is dq = v * dt; dt only scales the limits' velocity bounds. The loop is
+#: offline, so dt = 1 (v = dq per iteration): mink's collision bound is gain * (d - d_min) / dt
+#: on dq, so with dt = 1 its ``gain`` is, as documented, the fraction of the gap the geoms may
+#: close per iteration (dt = 0.01 allowed closing 85 times the gap, i.e. no avoidance).
+MINK_DT = 1.0
+#: Largest change of any joint per iteration [rad] (``VelocityLimit`` of MINK_MAX_STEP / dt).
+MINK_MAX_STEP = 0.1
+MINK_DAMPING = 1.0  # Levenberg-Marquardt damping on the QP Hessian (rows scaled 1/tol); chosen
+# before the step limit (14 of 30 quick keyframes against 12 with 1e-3), not re-checked since
+#: mink's collision limit: geoms closer than this are constrained not to approach [m]; at
+#: least the hand's travel in one MINK_MAX_STEP iteration (0.1 rad on a ~0.5 m lever), or
+#: geoms further apart than this close the gap and penetrate within one unconstrained step.
+MINK_DETECTION = 0.05
 #: mink's collision limit: minimum distance kept between geoms [m] (0: touching allowed).
 MINK_MIN_DIST = 0.0
 
@@ -80,6 +92,8 @@ class MinkSolver:
         m = self.model
         self.collision_geoms = [int(g) for g in np.flatnonzero(m.geom_contype | m.geom_conaffinity)]
         self.config_limit = mink.ConfigurationLimit(m)
+        self.step_limit = mink.VelocityLimit(
+            m, {m.joint(j).name: MINK_MAX_STEP / MINK_DT for j in range(m.njnt)})
         self.all_pairs = mink.CollisionAvoidanceLimit(
             m, [(self.collision_geoms, self.collision_geoms)],
             minimum_distance_from_collisions=MINK_MIN_DIST,
@@ -162,7 +176,7 @@ class MinkSolver:
         frozen = np.setdiff1d(np.arange(m.nv), free)
         joined = frozenset(s._joined_bodies(problem))
         tasks = self.tasks(problem)
-        limits = [self.config_limit, self._collision_limit(joined)]
+        limits = [self.config_limit, self.step_limit, self._collision_limit(joined)]
         constraints = [mink.DofFreezingTask(m, [int(i) for i in frozen])] if frozen.size else []
         plan = s._plan(problem)
         cfg = self.config

@@ -288,6 +288,7 @@ def main(argv=None) -> int:
                 "range_violation_eps_rad": RANGE_EPS,
                 "mink": {"max_iter": baselines.MINK_MAX_ITER, "dt": baselines.MINK_DT,
                          "damping": baselines.MINK_DAMPING, "qp": "daqp",
+                         "max_step_rad": baselines.MINK_MAX_STEP,
                          "collision_detection_m": baselines.MINK_DETECTION,
                          "collision_min_distance_m": baselines.MINK_MIN_DIST},
                 "sim": {"sim_time_s": baselines.SIM_TIME, "qvel_still": baselines.QVEL_STILL},

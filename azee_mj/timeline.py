@@ -576,7 +576,9 @@ class _Realizer:
                         w0 = max(0.0, a - max(min(a, MAX_BLEND), need))
                 else:  # no gap: blend at the end of the previous hold
                     w0, w1 = max(prev_start, a - need), a
-                w0 = max([w0] + [e for e in carried if e <= w1 + 1e-9])
+                pins = [e for e in carried if e < w1 + 1e-9]
+                if pins:  # never shorter than MIN_BLEND: a carried hold may end as this starts
+                    w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
             sel = (times >= w0) & (times < w1)
             if w1 > w0:
                 u = _minjerk((times[sel] - w0) / (w1 - w0))[:, None]

@@ -275,16 +275,17 @@ class _Compiler:
         """Model sites of the other part when placement ``c`` brings two parts together.
 
         A placement at a bare body site is a contact: both parts move to meet. A placement
-        at a point built from sites of an arm or hand (``@I_TIP(w)`` translated, the middle
-        of two fingertips) also moves that arm, since the point rides on it; a point built
-        from the head or trunk is a location that stays where the body holds it.
+        at a point that reads sites of an arm or hand (``@I_TIP(w)`` translated, the middle
+        of two fingertips) also moves that arm, since the point rides on it; a point that
+        reads only the head or trunk is a location that stays where the body holds it.
         """
         if not isinstance(c, sc.Place):
             return ()
         if isinstance(c.at, sc.PSite):
             return () if c.at.ref.locus else (self.site(c.at.ref),)
         own = self.site_tracks(self.site(c.site))
-        return tuple(s for s in map(self.site, _point_sites(c.at))
+        sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
+        return tuple(s for s in sites
                      if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
 
     def tracks_of(self, c) -> set[str]:
@@ -359,10 +360,12 @@ class _Realizer:
         out = []
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
-                for s in self.comp.partner_sites(c):
-                    body = self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))]
-                    other = self.m.site_bodyid[self.solver.site_id(s)]
-                    out.append((b.start, b.end, int(body), int(other)))
+                partners = self.comp.partner_sites(c)
+                if partners:
+                    body = int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
+                for s in partners:
+                    other = int(self.m.site_bodyid[self.solver.site_id(s)])
+                    out.append((b.start, b.end, body, other))
         return out
 
     def _allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
@@ -756,17 +759,6 @@ class _Realizer:
 def _violation(res: ik.IKResult) -> float:
     """How far a result is from its tolerances (sum of value / tol over the violated)."""
     return sum(r.value / r.tol for r in res.residuals if not r.ok) + res.penetration / 1e-3
-
-
-def _point_sites(e) -> list[sc.SiteRef]:
-    """Body sites (not loci) a point expression is built from."""
-    if isinstance(e, sc.PSite):
-        return [] if e.ref.locus else [e.ref]
-    if isinstance(e, sc.PTranslate):
-        return _point_sites(e.p)
-    if isinstance(e, sc.PMid):
-        return _point_sites(e.p) + _point_sites(e.q)
-    return []
 
 
 def _components(track_sets: list[set[str]]) -> list[set[str]]:

@@ -37,16 +37,11 @@ def _v(v) -> str:
 
 def _cmd_check(args) -> int:
     from azee_mj.check import check_poses, summary
-    from azee_mj.export import load_rollout_arrays
     from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
 
-    arrays = load_rollout_arrays(args.rollout)
     model = load_model()
-    if arrays["qpos"].shape[1] != model.nq:
-        raise AzeeError(
-            f"{args.rollout}: qpos has {arrays['qpos'].shape[1]} columns; the bundled signer "
-            f"has nq={model.nq}"
-        )
+    rollout = load_rollout(args.rollout, model.nq)
     allowed, score, solver = frozenset(), None, None
     if args.score:
         from azee_mj.ik import Solver
@@ -54,15 +49,14 @@ def _cmd_check(args) -> int:
         from azee_mj.timeline import contact_pairs
 
         score, solver = load_score(args.score), Solver()
-        allowed = contact_pairs(score, arrays["time"], solver)
-    report = check_poses(model, arrays["qpos"], allowed=allowed)
-    fps = float(arrays["fps"]) if "fps" in arrays else None
-    print(summary(report, fps))
+        allowed = contact_pairs(score, rollout.time, solver)
+    report = check_poses(model, rollout.qpos, allowed=allowed)
+    print(summary(report, rollout.fps))
     ok = report.clean
     if score is not None:
         from azee_mj.timeline import residual_summary
 
-        text, within = residual_summary(score, arrays, solver)
+        text, within = residual_summary(score, rollout, solver)
         print(text)
         ok = ok and within
     return 0 if ok else 1
@@ -83,7 +77,8 @@ class _Progress:
 
 
 def _cmd_realize(args) -> int:
-    from azee_mj.export import save_json, save_npz
+    from azee_mj.files import save_json
+    from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
 
@@ -91,7 +86,7 @@ def _cmd_realize(args) -> int:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
     score = load_score(args.score)
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_npz(args.output, rollout.arrays())
+    save_rollout(args.output, rollout)
     if args.report:
         save_json(args.report, rollout.report())
     s = rollout.stats

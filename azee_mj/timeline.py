@@ -139,21 +139,6 @@ class Rollout:
     traces: tuple[ConstraintTrace, ...]
     stats: SolveStats
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        """The arrays of the ``.npz`` export (numeric or fixed-width text)."""
-        tr = self.traces
-        return {
-            "time": self.time,
-            "qpos": self.qpos,
-            "fps": np.array(self.fps),
-            "mode": np.array(self.mode.value),
-            "site_names": np.array(self.site_names),
-            "site_pos": self.site_pos,
-            "residual_names": np.array([f"{t.block}#{t.index}" for t in tr], dtype=str),
-            "residual_tol": np.array([t.tol for t in tr]),
-            "residuals": np.array([t.values for t in tr]).reshape(len(tr), len(self.time)),
-        }
-
     def report(self) -> dict:
         """The JSON report: residuals per constraint and block, and timings."""
         s = self.stats
@@ -929,15 +914,15 @@ def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
     return r.traces(np.asarray(qpos, float), np.arange(len(qpos)) / fps)
 
 
-def residual_summary(score: sc.Score | str, arrays: Mapping[str, np.ndarray],
+def residual_summary(score: sc.Score | str, rollout: Rollout,
                      solver: ik.Solver | None = None) -> tuple[str, bool]:
-    """A readable residual summary of a rollout's arrays against ``score``, and whether
+    """A readable residual summary of a rollout's postures against ``score``, and whether
     every constraint is within its tolerance."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     # A trill moves its block's posture on purpose: its block's residuals are not checked.
     trilled = {b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)}
-    traces = [t for t in score_traces(score, arrays["qpos"], float(arrays["fps"]), solver)
+    traces = [t for t in score_traces(score, rollout.qpos, rollout.fps, solver)
               if t.block not in trilled]  # fmt: skip
     bad = [t for t in traces if not t.ok]
     lines = [f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"

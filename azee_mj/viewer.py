@@ -133,8 +133,8 @@ def load_clip(
 ) -> Clip:
     """A clip from ``SCORE.json`` (realized at ``fps``) or ``ROLLOUT.npz`` (with an optional
     ``score`` for targets and the schedule)."""
-    from azee_mj.export import load_rollout_arrays
     from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
     from azee_mj.timeline import realize
 
     path = Path(path)
@@ -145,15 +145,10 @@ def load_clip(
     if path.suffix.lower() != ".npz":
         raise AzeeError(f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix "
                         f"{path.suffix!r}")  # fmt: skip
-    a = load_rollout_arrays(path)
-    nq = load_model().nq
-    if a["qpos"].shape[1] != nq:
-        raise AzeeError(f"{path}: qpos has {a['qpos'].shape[1]} columns; the bundled signer "
-                        f"has nq={nq}")  # fmt: skip
-    rfps = float(a["fps"])
+    r = load_rollout(path, load_model().nq)
     given = sc.load_score(Path(score)) if score else None
-    sched = _schedule_of(given, rfps) if given is not None else {}
-    return Clip(a["time"], a["qpos"], rfps, sched, given, path.stem)
+    sched = _schedule_of(given, r.fps) if given is not None else {}
+    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
 
 
 # ---------------------------------------------------------------------------------------
@@ -524,7 +519,7 @@ def render(
     ``time`` [s], or without it a contact sheet of :func:`key_frames`, labelled.
     Raises :class:`AzeeError` for bad options (before anything is written).
     """
-    from azee_mj.export import atomic_path
+    from azee_mj.files import atomic_path
 
     out = Path(out)
     check_render_options(out, size, fps, time)

@@ -1,7 +1,7 @@
 """Literature signs (issue 6): realize the bundled examples beside the published figures.
 
-    /work/venv/bin/python bench/literature.py            # writes bench/results/literature.json
-    /work/venv/bin/python bench/literature.py --markdown # also prints the docs table
+    python bench/literature.py            # writes bench/results/literature.json
+    python bench/literature.py --markdown # also prints the docs table
 
 Every example is realized in both modes (``multitrack`` and ``flattened``) at 50 fps with
 one shared :class:`azee_mj.ik.Solver`, and reported with: postures solved
@@ -15,7 +15,7 @@ Published figures (Blender iTaSC, 1 cm / 5 degree thresholds): Nunnari, Filhol &
 (i7-3635QM, one core): tree 11 IK problems in 2.76 s; the two-sign sentence 152 IK problems
 in 9.97 s (the sentence is 'the cinema is/was good', sec. 5.2: our info-about example). The later Blender version's timings (arbre 0.63 s, bien 1.03 s, armoire 8.6 s)
 are the figures quoted in issue 6 for Sharma & Filhol 2022; they are not in the extracted
-text of that paper in /work/shared/reference.
+text of that paper.
 """
 
 from __future__ import annotations

@@ -44,11 +44,11 @@ def _cmd_check(args) -> int:
     rollout = load_rollout(args.rollout, model.nq)
     allowed, score, solver = frozenset(), None, None
     if args.score:
-        from azee_mj.ik import Solver
+        from azee_mj.schedule import make_solver
         from azee_mj.score import load_score
         from azee_mj.timeline import contact_pairs
 
-        score, solver = load_score(args.score), Solver()
+        score, solver = load_score(args.score), make_solver()
         allowed = contact_pairs(score, rollout.time, solver)
     report = check_poses(model, rollout.qpos, allowed=allowed)
     print(summary(report, rollout.fps))

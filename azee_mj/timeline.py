@@ -36,8 +36,11 @@ from collections.abc import Callable, Mapping
 import mujoco
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
+from azee_mj.kinematics import Const, compile_point, compile_vector
+from azee_mj.schedule import Compiler, make_solver
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 
 #: Longest blend between two postures of a track when the gap allows more [s].
@@ -105,6 +108,17 @@ class ConstraintTrace:
 
 
 @dataclasses.dataclass(frozen=True)
+class ContactWindow:
+    """A contact constraint's interval ``[start, end)`` [s] and the two model bodies it
+    brings together (allowed to touch then)."""
+
+    start: float
+    end: float
+    body: int
+    other: int
+
+
+@dataclasses.dataclass(frozen=True)
 class SolveStats:
     """IK work done for a rollout: problems solved, iterations, and wall times [s]."""
 
@@ -166,139 +180,6 @@ class Rollout:
 
 
 # ---------------------------------------------------------------------------------------
-# Score -> IK constraints, and the tracks each drives
-# ---------------------------------------------------------------------------------------
-
-
-class _Compiler:
-    """Translates score records into :mod:`azee_mj.ik` constraints on one signer."""
-
-    def __init__(self, model: mujoco.MjModel, smap: SignerMap):
-        self.m, self.smap = model, smap
-        self.joint_track: dict[int, str] = {}
-        for track, joints in smap.tracks.items():
-            for j in joints:
-                self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
-
-    # expressions
-    def site(self, ref: sc.SiteRef) -> str:
-        return ref.model_site(self.smap)
-
-    def point(self, e) -> ik.Expr:
-        if isinstance(e, sc.PSite):
-            return ik.SitePos(self.site(e.ref))
-        if isinstance(e, sc.PLiteral):
-            return ik.Const(tuple(e.xyz))
-        if isinstance(e, sc.PTranslate):
-            return ik.Lin(((1.0, self.point(e.p)), (1.0, self.vector(e.v))))
-        if isinstance(e, sc.PMid):
-            return ik.Lin(((0.5, self.point(e.p)), (0.5, self.point(e.q))))
-        raise TypeError(e)
-
-    def vector(self, e) -> ik.Expr:
-        if isinstance(e, (sc.VAxis, sc.VLiteral)):
-            return ik.Const(tuple(e.xyz))
-        if isinstance(e, sc.VBoneAxis):
-            b = e.bone.bone_map(self.smap)
-            return ik.BodyAxis(b.body, b.dir if e.axis is sc.Axis.DIR else b.nrm)
-        if isinstance(e, sc.VOpp):
-            return ik.Lin(((-1.0, self.vector(e.v)),))
-        if isinstance(e, sc.VScale):
-            return ik.Lin(((e.k, self.vector(e.v)),))
-        if isinstance(e, sc.VAdd):
-            return ik.Lin(tuple((1.0, self.vector(t)) for t in e.terms))
-        if isinstance(e, sc.VCross):
-            return ik.Cross(self.vector(e.a), self.vector(e.b))
-        if isinstance(e, sc.VFrom):
-            return ik.Lin(((1.0, self.point(e.q)), (-1.0, self.point(e.p))))
-        if isinstance(e, sc.VUnit):
-            return ik.Unit(self.vector(e.v))
-        raise TypeError(e)
-
-    # constraints
-    def constraint(self, c, label: str):
-        """The IK constraint of a place / orient / look, or None for morph / trill."""
-        if isinstance(c, sc.Place):
-            return ik.Place(self.site(c.site), self.point(c.at), c.tol, label)
-        if isinstance(c, sc.Orient):
-            b = c.bone.bone_map(self.smap)
-            local = b.dir if c.axis is sc.Axis.DIR else b.nrm
-            return ik.Orient(b.body, local, ik.Rel(c.rel.value), self.vector(c.vector), c.tol,
-                             label)  # fmt: skip
-        if isinstance(c, sc.Look):
-            eyes = tuple((self.smap.bones[e].body, self.smap.bones[e].dir)
-                         for e in ("eye_L", "eye_R"))  # fmt: skip
-            return ik.Look(eyes, self.point(c.at), np.deg2rad(1.0), label)
-        return None
-
-    def morph_changes(self, c: sc.MorphC) -> dict[str, float]:
-        return {j: c.weight * v for j, v in self.smap.morphs[c.id].joint_changes(c.side).items()}
-
-    # tracks
-    def body_tracks(self, body: int, own_only: bool) -> set[str]:
-        """Tracks owning the joints of ``body`` (and, unless ``own_only``, its ancestors')."""
-        out: set[str] = set()
-        while body > 0:
-            for j in range(self.m.body_jntadr[body],
-                           self.m.body_jntadr[body] + self.m.body_jntnum[body]):  # fmt: skip
-                if j in self.joint_track:
-                    out.add(self.joint_track[j])
-            if own_only and out:
-                return out
-            body = int(self.m.body_parentid[body])
-        return out
-
-    def site_tracks(self, site: str) -> set[str]:
-        """A placed site moves its limb: the tracks above it, without hands (shaped by
-        morphs) and without the spine unless nothing else can move it."""
-        sid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, site)
-        tracks = self.body_tracks(int(self.m.site_bodyid[sid]), own_only=False)
-        limb = {t for t in tracks if not t.startswith(("hand", "spine"))}
-        return limb or tracks
-
-    def partner_sites(self, c) -> tuple[str, ...]:
-        """Model sites of the other part when placement ``c`` brings two parts together.
-
-        A placement at a bare body site is a contact: both parts move to meet. A placement
-        at a point that reads sites of an arm or hand (``@I_TIP(w)`` translated, the middle
-        of two fingertips) also moves that arm, since the point rides on it; a point that
-        reads only the head or trunk is a location that stays where the body holds it.
-        """
-        if not isinstance(c, sc.Place):
-            return ()
-        if isinstance(c.at, sc.PSite):
-            return () if c.at.ref.locus else (self.site(c.at.ref),)
-        own = self.site_tracks(self.site(c.site))
-        sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
-        return tuple(s for s in sites
-                     if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
-
-    def tracks_of(self, c) -> set[str]:
-        """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
-        if isinstance(c, sc.Place):
-            out = self.site_tracks(self.site(c.site))
-            for s in self.partner_sites(c):  # both parts move
-                out |= self.site_tracks(s)
-            return out
-        if isinstance(c, sc.Orient):
-            body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
-            return self.body_tracks(body, own_only=True)
-        if isinstance(c, sc.MorphC):
-            out = set()
-            for j in self.morph_changes(c):
-                out.add(self.joint_track[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, j)])
-            return out
-        if isinstance(c, sc.Look):
-            return {"eyes", "head"}
-        if isinstance(c, sc.Trill):
-            if c.site is not None:
-                return self.site_tracks(self.site(c.site))
-            body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
-            return self.body_tracks(body, own_only=True)
-        raise TypeError(c)
-
-
-# ---------------------------------------------------------------------------------------
 # Pass 1: segments and key postures
 # ---------------------------------------------------------------------------------------
 
@@ -319,12 +200,13 @@ def _minjerk(u: np.ndarray | float):
     return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
 
 
-class _Realizer:
-    def __init__(self, score: sc.Score, solver: ik.Solver, fps: float, mode: Mode):
+class Realizer:
+    def __init__(self, score: sc.Score, solver: ik.Solver, fps: float, mode: Mode,
+                 signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
         self.score, self.solver, self.fps, self.mode = score, solver, fps, mode
         self.m = solver.model
-        self.smap = solver.signer_map
-        self.comp = _Compiler(self.m, self.smap)
+        self.smap = signer_map
+        self.comp = Compiler(self.m, self.smap)
         self.track_joints = {t: tuple(js) for t, js in self.smap.tracks.items()}
         self.track_dofs = {
             t: np.array([self.m.jnt_dofadr[solver.joint_id(j)] for j in js], int)
@@ -340,8 +222,8 @@ class _Realizer:
         self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
                            for b in range(self.m.nbody)]  # fmt: skip
 
-    def _contact_windows(self) -> list[tuple[float, float, int, int]]:
-        """(start, end, body, body) of every contact constraint of the score."""
+    def _contact_windows(self) -> list[ContactWindow]:
+        """The window of every contact constraint of the score."""
         out = []
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
@@ -350,15 +232,15 @@ class _Realizer:
                     body = int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
                 for s in partners:
                     other = int(self.m.site_bodyid[self.solver.site_id(s)])
-                    out.append((b.start, b.end, body, other))
+                    out.append(ContactWindow(b.start, b.end, body, other))
         return out
 
     def _allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
         pairs = set()
-        for a, b, x, y in self.contacts:
-            if a - 1e-9 <= t < b:
-                pairs |= {(x, y), (y, x)}
+        for w in self.contacts:
+            if w.start - 1e-9 <= t < w.end:
+                pairs |= {(w.body, w.other), (w.other, w.body)}
         return frozenset(pairs)
 
     # -- helpers ---------------------------------------------------------------------------
@@ -504,7 +386,7 @@ class _Realizer:
             jid = self.solver.joint_id(j)
             lo, hi = self.m.jnt_range[jid]
             val = float(np.clip(self.m.qpos0[self.m.jnt_qposadr[jid]] + v, lo, hi))
-            out.append(ik.JointTarget(j, val, tol, f"morph:{j}"))
+            out.append(cn.JointTarget(j, val, tol, f"morph:{j}"))
         return out
 
     def _track_posture_at(self, tkeys: list[_Key], t: float) -> np.ndarray:
@@ -596,7 +478,7 @@ class _Realizer:
                     free |= set(key.free)
             for b in tp:
                 if b.start <= t < b.end and limbs[b.path] & tracks:
-                    cons.append(ik.Place(sites[b.path], ik.Const(tuple(paths[b.path][f])), 1e-3,
+                    cons.append(cn.Place(sites[b.path], Const(tuple(paths[b.path][f])), 1e-3,
                                          f"{b.path}@path"))  # fmt: skip
                     free |= {j for tr in limbs[b.path] for j in self.track_joints[tr]}
             if not cons:
@@ -620,20 +502,20 @@ class _Realizer:
     def _moved_by(self, c) -> set[str]:
         """Tracks whose joints move a body that IK constraint ``c`` names."""
         if c not in self._moved_cache:
-            bodies = self.solver._bodies_of(c)
+            bodies = self.solver.bodies_of(c)
             self._moved_cache[c] = set().union(
                 *(self.comp.body_tracks(b, own_only=False) for b in bodies))
         return self._moved_cache[c]
 
-    def _soft_targets(self, qf: np.ndarray, joints) -> list[ik.JointTarget]:
+    def _soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
         adr = self.m.jnt_qposadr
-        return [ik.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
+        return [cn.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
                 for j in sorted(joints)]  # fmt: skip
 
     def _penetrates(self, qf: np.ndarray, t: float) -> bool:
         d = self.solver.data
         d.qpos[:] = qf
-        return ik.penetration_depth(self.m, d, self._allowed_at(t)) > ik.PENETRATION_LIMIT
+        return cn.penetration_depth(self.m, d, self._allowed_at(t)) > cn.PENETRATION_LIMIT
 
     def _transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:
         """(T, 3) path points of a transpath for every frame (valid inside its interval)."""
@@ -665,7 +547,7 @@ class _Realizer:
             kq = {}
             for f in kf:
                 soft = self._soft_targets(q[f], free)
-                cons = [ik.Place(site, ik.Const(tuple(pts[f])), 1e-3, f"{b.path}@path")]
+                cons = [cn.Place(site, Const(tuple(pts[f])), 1e-3, f"{b.path}@path")]
                 kq[f] = self._solve(cons + soft, free, q[f], times[f]).qpos
             # Whole-body blend between consecutive transpath keyframes.
             fr = sorted(kq)
@@ -694,7 +576,7 @@ class _Realizer:
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(m, d)
                     mujoco.mj_comPos(m, d)
-                    v = sc.eval_vector(c.vector, self._site_pos, self._bone_axis)
+                    v = self.solver.kinematics().value(compile_vector(c.vector, self.smap))
                     v = v / np.linalg.norm(v)
                     a = c.amplitude * env * np.sin(2 * np.pi * c.frequency * (times[f] - b.start))
                     if c.site is not None:
@@ -711,14 +593,6 @@ class _Realizer:
                                            times[f]).qpos  # fmt: skip
         return q
 
-    def _site_pos(self, ref: sc.SiteRef) -> np.ndarray:
-        return self.solver.data.site_xpos[self.solver.site_id(self.comp.site(ref))].copy()
-
-    def _bone_axis(self, bone: sc.BoneRef, axis: sc.Axis) -> np.ndarray:
-        b = bone.bone_map(self.smap)
-        R = self.solver.data.xmat[self.solver.body_id(b.body)].reshape(3, 3)
-        return R @ np.asarray(b.dir if axis is sc.Axis.DIR else b.nrm)
-
     # -- residuals ---------------------------------------------------------------------
     def traces(self, q: np.ndarray, times: np.ndarray) -> tuple[ConstraintTrace, ...]:
         out = []
@@ -734,8 +608,8 @@ class _Realizer:
                 for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end - 1e-9)):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
-                    vals[f] = ic.residual(ik._Kin(self.solver))
-                unit = "m" if isinstance(ic, ik.Place) else "rad"
+                    vals[f] = ic.residual(self.solver.kinematics())
+                unit = "m" if isinstance(ic, cn.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
                                            unit, b.start, b.end, vals))  # fmt: skip
         return tuple(out)
@@ -759,7 +633,7 @@ def _components(track_sets: list[set[str]]) -> list[set[str]]:
     return groups
 
 
-def _path_points(route, x0, x1, u, realizer: _Realizer, q_start) -> np.ndarray:
+def _path_points(route, x0, x1, u, realizer: Realizer, q_start) -> np.ndarray:
     """Points (len(u), 3) of a transpath route from ``x0`` to ``x1`` at parameters ``u``."""
     u = np.asarray(u)[:, None]
     if isinstance(route, sc.Straight):
@@ -767,15 +641,16 @@ def _path_points(route, x0, x1, u, realizer: _Realizer, q_start) -> np.ndarray:
     d = realizer.solver.data
     d.qpos[:] = q_start
     mujoco.mj_kinematics(realizer.m, d)
+    kin, smap = realizer.solver.kinematics(), realizer.smap
     if isinstance(route, sc.Arc):
-        bulge = sc.eval_vector(route.bulge, realizer._site_pos, realizer._bone_axis)
+        bulge = kin.value(compile_vector(route.bulge, smap))
         mid = 0.5 * (x0 + x1) + bulge
         return _arc_through(x0, mid, x1, u[:, 0])
     if isinstance(route, sc.Circle):
-        c = sc.eval_point(route.center, realizer._site_pos, realizer._bone_axis)
+        c = kin.value(compile_point(route.center, smap))
         r0, r1 = x0 - c, x1 - c
         if route.normal is not None:
-            n = sc.eval_vector(route.normal, realizer._site_pos, realizer._bone_axis)
+            n = kin.value(compile_vector(route.normal, smap))
         else:
             n = np.cross(r0, r1)
         n = n / max(np.linalg.norm(n), 1e-12)
@@ -821,19 +696,13 @@ def _arc_through(a, b, c, u) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 
 
-def constraint_tracks(c, model: mujoco.MjModel | None = None, signer_map: SignerMap = DEFAULT_MAP):
-    """The tracks a score constraint drives (a contact drives both sides it joins)."""
-    from azee_mj.model import load_model
-
-    return _Compiler(model or load_model(), signer_map).tracks_of(c)
-
-
 def realize(
     score: sc.Score | str | Mapping,
     *,
     fps: float = 50.0,
     mode: Mode | str = Mode.MULTITRACK,
     solver: ik.Solver | None = None,
+    signer_map: SignerMap | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> Rollout:
     """Realize a score: the motion of the signer, frame ``k`` at ``k / fps`` [s].
@@ -842,7 +711,9 @@ def realize(
       score: a loaded :class:`~azee_mj.score.Score`, a path or a parsed JSON object.
       fps: frames per second.
       mode: ``multitrack`` (default) or ``flattened`` (the 2018 method, for comparison).
-      solver: an :class:`~azee_mj.ik.Solver` to reuse (compiling one takes ~0.1 s).
+      solver: an :class:`~azee_mj.ik.Solver` to reuse (compiling one takes ~0.1 s; default
+        :func:`~azee_mj.schedule.make_solver` for ``signer_map``).
+      signer_map: the AZee names of the solver's signer (default: the bundled signer's).
       progress: called with the fraction done (0..1).
 
     Returns:
@@ -854,8 +725,9 @@ def realize(
     mode = Mode(mode) if isinstance(mode, str) else mode
     if fps <= 0:
         raise ValueError(f"fps must be positive, got {fps}")
-    solver = solver or ik.Solver()
-    r = _Realizer(score, solver, fps, mode)
+    smap = signer_map or DEFAULT_MAP
+    solver = solver or make_solver(signer_map=smap)
+    r = Realizer(score, solver, fps, mode, smap)
     tick = progress or (lambda f: None)
     keys = r.key_postures()
     tick(0.4)
@@ -865,8 +737,8 @@ def realize(
     # Residuals are those of the postures the blocks ask for: a trill is added on top.
     traces = r.traces(q, times)
     q = r.trills(q, times)
-    site_names = tuple(solver.signer_map.sites)
-    sids = np.array([solver.site_id(s) for s in solver.signer_map.sites.values()])
+    site_names = tuple(smap.sites)
+    sids = np.array([solver.site_id(s) for s in smap.sites.values()])
     d = solver.data
     site_pos = np.empty((len(times), len(sids), 3))
     for f in range(len(times)):
@@ -889,7 +761,7 @@ def schedule(score: sc.Score | str, solver: ik.Solver | None = None
     """Per track, the intervals blocks drive it, without solving anything."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
-    return _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK).schedule()
+    return Realizer(score, solver or make_solver(), 1.0, Mode.MULTITRACK).schedule()
 
 
 def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
@@ -897,11 +769,11 @@ def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
     """Frame -> body-name pairs that a contact constraint active then brings together."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
-    r = _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK)
+    r = Realizer(score, solver or make_solver(), 1.0, Mode.MULTITRACK)
     out: dict[int, set[tuple[str, str]]] = {}
-    for start, end, x, y in r.contacts:
-        for f in np.flatnonzero((times >= start - 1e-9) & (times < end)):
-            out.setdefault(int(f), set()).add((r.body_names[x], r.body_names[y]))
+    for w in r.contacts:
+        for f in np.flatnonzero((times >= w.start - 1e-9) & (times < w.end)):
+            out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
     return {f: frozenset(v) for f, v in out.items()}
 
 
@@ -910,7 +782,7 @@ def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
     """Residual traces of ``score``'s constraints on given frames ``qpos`` (T, nq)."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
-    r = _Realizer(score, solver or ik.Solver(), fps, Mode.MULTITRACK)
+    r = Realizer(score, solver or make_solver(), fps, Mode.MULTITRACK)
     return r.traces(np.asarray(qpos, float), np.arange(len(qpos)) / fps)
 
 

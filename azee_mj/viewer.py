@@ -30,8 +30,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
+from azee_mj.kinematics import Unit
+from azee_mj.schedule import Compiler, make_solver
+from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.errors import AzeeError
 from azee_mj.model import SCENE_PATH
 
@@ -42,7 +46,7 @@ GL_BACKENDS = ("egl", "osmesa")
 #: Default image size [px].
 DEFAULT_SIZE = (640, 480)
 #: Contacts deeper than this are drawn red [m] (the IK solver's penetration limit).
-PENETRATION = ik.PENETRATION_LIMIT
+PENETRATION = cn.PENETRATION_LIMIT
 #: Shadow map size of offscreen renders [px].
 SHADOW_SIZE = 1024
 #: Length of an orientation arrow [m].
@@ -120,7 +124,7 @@ _SOLVER: ik.Solver | None = None
 def _solver() -> ik.Solver:
     global _SOLVER
     if _SOLVER is None:
-        _SOLVER = ik.Solver()
+        _SOLVER = make_solver()
     return _SOLVER
 
 
@@ -185,18 +189,17 @@ class _Target:
     index: int
     start: float
     end: float
-    con: ik.Place | ik.Orient | ik.Look
+    con: cn.Place | cn.Orient | cn.Look
 
 
 class Targets:
     """The place / orient / look constraints of a score, as IK constraints with their
-    blocks' intervals (compiled once by the realizer's ``_Compiler``)."""
+    blocks' intervals (compiled once by :class:`~azee_mj.schedule.Compiler`)."""
 
-    def __init__(self, score: sc.Score, solver: ik.Solver | None = None):
-        from azee_mj.timeline import _Compiler
-
+    def __init__(self, score: sc.Score, solver: ik.Solver | None = None,
+                 signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
         self.solver = solver or _solver()
-        comp = _Compiler(self.solver.model, self.solver.signer_map)
+        comp = Compiler(self.solver.model, signer_map)
         out = []
         for b in score.blocks():
             if b.kind is not sc.BlockKind.CSTR:
@@ -232,24 +235,24 @@ def markers(
         s = targets.solver
         s.data.qpos[:] = q
         mujoco.mj_kinematics(s.model, s.data)
-        kin = ik._Kin(s)
+        kin = s.kinematics()
         for x in targets.active(float(clip.time[frame])):
             c = x.con
             res = c.residual(kin)
             bad = res > c.tol
             label = f"{x.block}#{x.index}"
-            if isinstance(c, ik.Place):
-                p = kin.eval(c.target, jac=False)[0]
+            if isinstance(c, cn.Place):
+                p = kin.value(c.target)
                 out.append(Marker("sphere", label, p, None, res, bad))
-            elif isinstance(c, ik.Orient):
-                v = kin.eval(ik.Unit(c.vector), jac=False)[0]
-                if c.rel is ik.Rel.OPP:
+            elif isinstance(c, cn.Orient):
+                v = kin.value(Unit(c.vector))
+                if c.rel is cn.Rel.OPP:
                     v = -v
                 o = s.data.xpos[s.body_id(c.body)].copy()
                 out.append(Marker("arrow", label, o, o + ARROW_LENGTH * v, res, bad))
             else:  # Look
                 eyes = np.mean([s.data.xpos[s.body_id(b)] for b, _ in c.eyes], axis=0)
-                p = kin.eval(c.target, jac=False)[0]
+                p = kin.value(c.target)
                 out.append(Marker("line", label, eyes, p, res, bad))
     data.qpos[:] = q
     mujoco.mj_kinematics(model, data)
@@ -606,7 +609,7 @@ KEYS = (
 )
 
 
-class _Player:
+class Player:
     """Play state changed by the viewer's key callback (runs on the viewer's thread)."""
 
     def __init__(self, n_frames: int):
@@ -652,7 +655,7 @@ def preview(
     model = scene_model()
     data = mujoco.MjData(model)
     tg = Targets(clip.score) if targets and clip.score is not None else None
-    player = _Player(len(clip.time))
+    player = Player(len(clip.time))
     cams = [-1] + [_camera_id(model, c) for c in CAMERAS]
     cam_i = cams.index(_camera_id(model, camera)) if camera else 0
     data.qpos[:] = clip.qpos[0]

@@ -30,10 +30,11 @@ import time
 import mujoco
 import numpy as np
 
-from azee_mj import ik
 from azee_mj.check import check_poses
 from azee_mj.model import load_model
+from azee_mj.schedule import make_solver
 from azee_mj.score import load_score
+from azee_mj.sites import DEFAULT_MAP
 from azee_mj.timeline import contact_pairs, realize
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -71,7 +72,7 @@ def undriven_motion(rollout, schedule, solver) -> float:
     """Total joint path length [rad] of the tracks with no interval in ``schedule``."""
     m = solver.model
     total = 0.0
-    for track, joints in solver.signer_map.tracks.items():
+    for track, joints in DEFAULT_MAP.tracks.items():
         if schedule.get(track):
             continue
         adr = [m.jnt_qposadr[solver.joint_id(j)] for j in joints
@@ -117,7 +118,7 @@ def main(argv=None) -> int:
     ap.add_argument("--markdown", action="store_true", help="print the markdown table")
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args(argv)
-    solver, model = ik.Solver(), load_model()
+    solver, model = make_solver(), load_model()
     names = sorted(p.stem for p in EXAMPLES.glob("*.json"))
     # Warm-up (imports, first compile of the row plans) outside the timings.
     realize(str(EXAMPLES / "bien.json"), fps=10, solver=solver)

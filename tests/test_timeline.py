@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from azee_mj import ik, timeline
 from azee_mj.check import check_poses
+from azee_mj.schedule import make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 
@@ -22,7 +23,7 @@ DATA = Path(__file__).parent / "data"
 
 @pytest.fixture(scope="module")
 def solver() -> ik.Solver:
-    return ik.Solver(seed=0)
+    return make_solver(seed=0)
 
 
 @pytest.fixture(scope="module")
@@ -286,14 +287,14 @@ def test_golden_rollout(solver):
     ``python -c "from tests.test_timeline import write_golden; write_golden()"`` after an
     intended change, and say why in the commit."""
     golden = np.load(DATA / "good_golden.npz")
-    r = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    r = timeline.realize(DATA / "good.json", solver=make_solver(seed=0))
     np.testing.assert_array_equal(r.time, golden["time"])
     # Same posture to 1 mm at every site (solver round-off and restarts aside).
     assert np.abs(r.site_pos - golden["site_pos"]).max() < 1e-3
 
 
 def write_golden():
-    r = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    r = timeline.realize(DATA / "good.json", solver=make_solver(seed=0))
     np.savez_compressed(DATA / "good_golden.npz", time=r.time, qpos=r.qpos, site_pos=r.site_pos)
 
 
@@ -340,7 +341,7 @@ def test_schedule_intervals_lie_within_their_parents(solver, children):
     score = load_score({"format": "azee-score", "version": 1,
                         "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0,
                                  "children": children}})
-    r = timeline._Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
+    r = timeline.Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
     sched = r.schedule()
     parents = {c.path: b for b in score.blocks() for c in b.children}
     for track, intervals in sched.items():

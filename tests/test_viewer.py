@@ -50,6 +50,7 @@ def gl() -> str:
 
 def _expected_targets(clip: v.Clip, frame: int):
     """Targets of the K1 block evaluated directly from the score's expressions."""
+    from azee_mj.kinematics import Kinematics, compile_point, compile_vector
     from azee_mj.sites import DEFAULT_MAP
 
     m = v.scene_model()
@@ -57,19 +58,11 @@ def _expected_targets(clip: v.Clip, frame: int):
     d.qpos[:] = clip.qpos[frame]
     mujoco.mj_kinematics(m, d)
 
-    def site_pos(ref):
-        return d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE,
-                                             ref.model_site(DEFAULT_MAP))].copy()  # fmt: skip
-
-    def bone_axis(bone, axis):
-        b = bone.bone_map(DEFAULT_MAP)
-        bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.body)
-        return d.xmat[bid].reshape(3, 3) @ np.asarray(b.dir if axis is sc.Axis.DIR else b.nrm)
-
     k1 = clip.score.block("GOOD.K1")
     place, orient = k1.constraints
-    p = sc.eval_point(place.at, site_pos, bone_axis)
-    vec = sc.eval_vector(orient.vector, site_pos, bone_axis)
+    kin = Kinematics(m, d)
+    p = kin.value(compile_point(place.at, DEFAULT_MAP))
+    vec = kin.value(compile_vector(orient.vector, DEFAULT_MAP))
     body = orient.bone.model_body(DEFAULT_MAP)
     origin = d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)].copy()
     return p, origin, vec / np.linalg.norm(vec)
@@ -138,7 +131,7 @@ def test_overlay_text_names_time_and_active_blocks(clip):
 
 
 def test_player_keys():
-    p = v._Player(10)
+    p = v.Player(10)
     p.key(32)
     assert p.paused
     p.key(262), p.key(262), p.key(263)

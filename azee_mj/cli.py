@@ -44,9 +44,8 @@ def _cmd_check(args) -> int:
     rollout = load_rollout(args.rollout, model.nq)
     allowed, score, solver = frozenset(), None, None
     if args.score:
-        from azee_mj.schedule import make_solver
+        from azee_mj.schedule import contact_pairs, make_solver
         from azee_mj.score import load_score
-        from azee_mj.timeline import contact_pairs
 
         score, solver = load_score(args.score), make_solver()
         allowed = contact_pairs(score, rollout.time, solver)

@@ -2,7 +2,7 @@
 
 Every array is time first: ``qpos`` (T, nq), ``site_pos`` (T, S, 3), ``residuals`` (T, C)
 for the C constraint traces. The schedule is stored as four parallel arrays and restored as
-:class:`~azee_mj.timeline.TrackInterval` records. A file holding only the required arrays
+:class:`~azee_mj.schedule.TrackInterval` records. A file holding only the required arrays
 (``time``, ``qpos``, ``fps``, ``site_names``, ``site_pos``) loads with an empty schedule,
 no traces and zero stats.
 """
@@ -15,7 +15,8 @@ import numpy as np
 
 from azee_mj.errors import InputFileError
 from azee_mj.files import save_npz
-from azee_mj.timeline import ConstraintTrace, Mode, Rollout, SolveStats, TrackInterval
+from azee_mj.schedule import TrackInterval
+from azee_mj.timeline import ConstraintTrace, Mode, Rollout, SolveStats
 
 #: Arrays every rollout file holds.
 REQUIRED = ("time", "qpos", "fps", "site_names", "site_pos")

@@ -1,10 +1,16 @@
-"""The signer as the realizer drives it: a solver for a signer, and the tracks (articulator
-groups) that score constraints drive.
+"""A score laid on a signer, before any motion: which tracks (articulator groups: ``spine``,
+``head``, ``eyes``, ``face``, ``arm_X``, ``hand_X``) each constraint drives, the intervals
+blocks drive them, the segment boundaries and the contact windows. Also the solver for a
+signer (:func:`make_solver`, with the AZee joint weights).
+
+Units: seconds.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from collections.abc import Mapping
 
 import mujoco
 import numpy as np
@@ -149,3 +155,159 @@ def constraint_tracks(c, model: mujoco.MjModel | None = None, signer_map: Signer
     from azee_mj.model import load_model
 
     return Compiler(model or load_model(), signer_map).tracks_of(c)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackInterval:
+    """Track ``track`` driven by block ``block`` over ``[start, end)`` [s]."""
+
+    track: str
+    block: str
+    start: float
+    end: float
+
+
+@dataclasses.dataclass(frozen=True)
+class ContactWindow:
+    """A contact constraint's interval ``[start, end)`` [s] and the two model bodies it
+    brings together (allowed to touch then)."""
+
+    start: float
+    end: float
+    body: int
+    other: int
+
+
+@dataclasses.dataclass(frozen=True)
+class DrivenConstraint:
+    """A score constraint of a cstr block: its solver constraint (None for a morph or a
+    trill), the joint changes of a morph, the tracks it drives, and the score record."""
+
+    con: cn.Constraint | None
+    morph: dict[str, float]
+    tracks: set[str]
+    source: sc.Constraint
+
+
+class Schedule:
+    """A score laid on a signer: the tracks each block drives, the segments' boundaries and
+    the contact windows (no solving)."""
+
+    def __init__(self, score: sc.Score, solver: ik.Solver, signer_map: SignerMap = DEFAULT_MAP):
+        self.score, self.solver = score, solver
+        self.m = solver.model
+        self.smap = signer_map
+        self.comp = Compiler(self.m, self.smap)
+        self.track_joints = {t: tuple(js) for t, js in self.smap.tracks.items()}
+        self.track_dofs = {
+            t: np.array([self.m.jnt_dofadr[solver.joint_id(j)] for j in js], int)
+            for t, js in self.track_joints.items()
+        }
+        self.home = solver.natural.copy()
+        self.blocks = [b for b in score.blocks()]
+        self.by_path = {b.path: b for b in self.blocks}
+        self.contacts = self._contact_windows()
+        self._moved_cache: dict = {}
+        self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
+                           for b in range(self.m.nbody)]  # fmt: skip
+
+    def _contact_windows(self) -> list[ContactWindow]:
+        """The window of every contact constraint of the score."""
+        out = []
+        for b in self.blocks:
+            for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
+                partners = self.comp.partner_sites(c)
+                if partners:
+                    body = int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
+                for s in partners:
+                    other = int(self.m.site_bodyid[self.solver.site_id(s)])
+                    out.append(ContactWindow(b.start, b.end, body, other))
+        return out
+
+    def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
+        """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
+        pairs = set()
+        for w in self.contacts:
+            if w.start - 1e-9 <= t < w.end:
+                pairs |= {(w.body, w.other), (w.other, w.body)}
+        return frozenset(pairs)
+
+    def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
+        """What each constraint of a cstr block drives, in order."""
+        out = []
+        for c in b.constraints:
+            label = f"{b.path}#{c.index}"
+            tracks = self.comp.tracks_of(c)
+            if isinstance(c, sc.MorphC):
+                out.append(DrivenConstraint(None, self.comp.morph_changes(c), tracks, c))
+            elif isinstance(c, sc.Trill):
+                out.append(DrivenConstraint(None, {}, tracks, c))
+            else:
+                out.append(DrivenConstraint(self.comp.constraint(c, label), {}, tracks, c))
+        return out
+
+    def intervals(self) -> dict[str, tuple[TrackInterval, ...]]:
+        """Per track, the intervals blocks drive it, in time order."""
+        sched: dict[str, list[TrackInterval]] = {t: [] for t in self.track_joints}
+        for b in self.blocks:
+            if b.kind is sc.BlockKind.CSTR:
+                tracks = set().union(*(self.comp.tracks_of(c) for c in b.constraints))
+            elif b.kind is sc.BlockKind.HOLD:
+                tracks = self.held_tracks(b)
+            elif b.kind is sc.BlockKind.TRANSPATH:
+                tracks = self.comp.site_tracks(self.comp.site(b.transpath_site))
+            else:
+                continue
+            for t in tracks:
+                sched[t].append(TrackInterval(t, b.path, b.start, b.end))
+        return {t: tuple(sorted(v, key=lambda i: (i.start, i.end))) for t, v in sched.items()}
+
+    def held_tracks(self, hold: sc.Block) -> set[str]:
+        """The tracks the block a hold keeps drove (nested holds included)."""
+        held = self.by_path[hold.hold_of]
+        out: set[str] = set()
+        for b in held.blocks():
+            if b.kind is sc.BlockKind.CSTR:
+                for c in b.constraints:
+                    if not isinstance(c, sc.Trill):
+                        out |= self.comp.tracks_of(c)
+            elif b.kind is sc.BlockKind.HOLD:
+                out |= self.held_tracks(b)
+        return out
+
+    def events(self) -> list[float]:
+        """Block boundaries [s] that cut the score into segments, in order."""
+        ts = {0.0, self.score.duration}
+        for b in self.blocks:
+            if b.kind in (sc.BlockKind.CSTR, sc.BlockKind.HOLD):
+                ts.update((b.start, b.end))
+        return sorted(t for t in ts if 0.0 <= t <= self.score.duration)
+
+    def moved_by(self, c) -> set[str]:
+        """Tracks whose joints move a body that IK constraint ``c`` names."""
+        if c not in self._moved_cache:
+            bodies = self.solver.bodies_of(c)
+            self._moved_cache[c] = set().union(
+                *(self.comp.body_tracks(b, own_only=False) for b in bodies))
+        return self._moved_cache[c]
+
+
+def schedule(score: sc.Score | str, solver: ik.Solver | None = None
+             ) -> dict[str, tuple[TrackInterval, ...]]:
+    """Per track, the intervals blocks drive it, without solving anything."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    return Schedule(score, solver or make_solver()).intervals()
+
+
+def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
+                  solver: ik.Solver | None = None) -> dict[int, frozenset[tuple[str, str]]]:
+    """Frame -> body-name pairs that a contact constraint active then brings together."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    r = Schedule(score, solver or make_solver())
+    out: dict[int, set[tuple[str, str]]] = {}
+    for w in r.contacts:
+        for f in np.flatnonzero((times >= w.start - 1e-9) & (times < w.end)):
+            out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
+    return {f: frozenset(v) for f, v in out.items()}

@@ -33,11 +33,11 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
-from azee_mj.kinematics import Unit
-from azee_mj.schedule import Compiler, make_solver
-from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.errors import AzeeError
+from azee_mj.kinematics import Unit
 from azee_mj.model import SCENE_PATH
+from azee_mj.schedule import Compiler, make_solver, schedule
+from azee_mj.sites import DEFAULT_MAP, SignerMap
 
 #: The fixed cameras of ``scene.xml``, in the order ``C`` cycles them in the viewer.
 CAMERAS = ("front", "side", "three-quarter", "top")
@@ -112,9 +112,7 @@ class Clip:
 
 def _schedule_of(score: sc.Score, fps: float) -> dict:
     """The per-track schedule of a score without solving it (reuses the realizer's)."""
-    from azee_mj import timeline
-
-    sched = timeline.schedule(score, _solver())
+    sched = schedule(score, _solver())
     return {t: tuple((i.block, i.start, i.end) for i in v) for t, v in sched.items()}
 
 

@@ -32,10 +32,10 @@ import numpy as np
 
 from azee_mj.check import check_poses
 from azee_mj.model import load_model
-from azee_mj.schedule import make_solver
+from azee_mj.schedule import contact_pairs, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
-from azee_mj.timeline import contact_pairs, realize
+from azee_mj.timeline import realize
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"

@@ -14,8 +14,8 @@ import pytest
 
 from azee_mj.check import check_poses
 from azee_mj.model import load_model
-from azee_mj.schedule import make_solver
-from azee_mj.timeline import contact_pairs, realize
+from azee_mj.schedule import contact_pairs, make_solver
+from azee_mj.timeline import realize
 
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 NAMES = sorted(p.stem for p in EXAMPLES.glob("*.json"))

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import kinematics as kin
-from azee_mj.schedule import make_solver
 from azee_mj.check import check_poses
+from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
 

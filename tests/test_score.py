@@ -14,6 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from azee_mj.errors import AzeeError, ScoreError
+from azee_mj.kinematics import Kinematics, compile_point, compile_vector
+from azee_mj.model import load_model
 from azee_mj.score import (
     Arc,
     Axis,
@@ -47,8 +49,6 @@ from azee_mj.score import (
     referenced_bones,
     referenced_sites,
 )
-from azee_mj.kinematics import Kinematics, compile_point, compile_vector
-from azee_mj.model import load_model
 from azee_mj.sites import DEFAULT_MAP
 
 DATA = Path(__file__).parent / "data"

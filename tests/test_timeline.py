@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from azee_mj import ik, timeline
 from azee_mj.check import check_poses
-from azee_mj.schedule import make_solver
+from azee_mj.schedule import contact_pairs, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 
@@ -75,7 +75,7 @@ def test_no_joint_leaves_its_range_or_moves_faster_than_25_rad_s(kinds, solver):
 
 
 def test_no_penetration_at_any_frame(kinds, solver):
-    allowed = timeline.contact_pairs(DATA / "kinds.json", kinds.time)
+    allowed = contact_pairs(DATA / "kinds.json", kinds.time)
     report = check_poses(solver.model, kinds.qpos, allowed=allowed)
     assert report.clean, report.penetrations[:3]
 
@@ -217,7 +217,7 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     np.testing.assert_allclose(gap, [0.0, -0.0136, 0.0], atol=1e-3)
     head = _dofs(solver, "head")
     assert np.abs(rollout.qpos[:, head] - rollout.qpos[0, head]).max() == 0.0
-    allowed = timeline.contact_pairs(load_score(score), rollout.time, solver)
+    allowed = contact_pairs(load_score(score), rollout.time, solver)
     assert set(allowed) == set(range(len(rollout.time) - 1))
     assert {tuple(sorted(p)) for v in allowed.values() for p in v} == {("index_L_3", "index_R_3")}
 

@@ -7,9 +7,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from azee_mj.errors import AzeeError
+
+if TYPE_CHECKING:
+    from azee_mj.markers import Clip
 
 
 def _cmd_sites(args) -> int:
@@ -98,8 +105,36 @@ def _cmd_realize(args) -> int:
     return 0
 
 
+def load_clip(
+    path: str | os.PathLike,
+    *,
+    score: str | os.PathLike | None = None,
+    fps: float = 50.0,
+    progress: Callable[[float], None] | None = None,
+) -> Clip:
+    """A clip from ``SCORE.json`` (realized at ``fps``) or ``ROLLOUT.npz`` (with an optional
+    ``score`` for targets and the schedule)."""
+    from azee_mj import score as sc
+    from azee_mj.markers import Clip, schedule_of, shared_solver
+    from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
+    from azee_mj.timeline import realize
+
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        s = sc.load_score(path)
+        rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
+        return Clip.from_rollout(rollout, s, path.stem)
+    if path.suffix.lower() != ".npz":
+        raise AzeeError(f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix "
+                        f"{path.suffix!r}")  # fmt: skip
+    r = load_rollout(path, load_model().nq)
+    given = sc.load_score(Path(score)) if score else None
+    sched = schedule_of(given) if given is not None else {}
+    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
+
+
 def _clip(args, progress: bool = True):
-    from azee_mj.viewer import load_clip
 
     if args.fps is not None and args.fps <= 0:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
@@ -120,7 +155,7 @@ def _cmd_preview(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    from azee_mj.viewer import check_render_options, parse_size, render
+    from azee_mj.render import check_render_options, parse_size, render
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time)  # before realizing
@@ -168,7 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--score", help="the score it realizes: also report constraint residuals")
     c.set_defaults(func=_cmd_check)
 
-    from azee_mj.viewer import CAMERAS
+    from azee_mj.render import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
     v.add_argument("input", metavar="SCORE|ROLLOUT",

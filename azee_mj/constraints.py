@@ -16,13 +16,13 @@ Units: metres, radians.
 from __future__ import annotations
 
 import dataclasses
-import enum
 from typing import ClassVar, Protocol
 
 import mujoco
 import numpy as np
 
 from azee_mj.kinematics import BodyAxis, BodyOrigin, Expr, Kinematics, Lin, Unit
+from azee_mj.score import Rel  # along / opp / perp: the score's own relation
 
 #: Penetration depth [m] at which a collision row reaches 1 (its "tolerance").
 COLLISION_TOL = 1e-4
@@ -42,14 +42,6 @@ class Constraint(Protocol):
     def rows(self, k: Kinematics) -> tuple[np.ndarray, np.ndarray]: ...
 
     def residual(self, k: Kinematics) -> float: ...
-
-
-class Rel(enum.Enum):
-    """How a bone axis relates to a vector."""
-
-    ALONG = "along"
-    OPP = "opp"
-    PERP = "perp"
 
 
 @dataclasses.dataclass(frozen=True)

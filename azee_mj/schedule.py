@@ -75,7 +75,7 @@ class Compiler:
         if isinstance(c, sc.Orient):
             b = c.bone.bone_map(self.smap)
             local = b.dir if c.axis is sc.Axis.DIR else b.nrm
-            return cn.Orient(b.body, local, cn.Rel(c.rel.value), compile_vector(c.vector, self.smap), c.tol,
+            return cn.Orient(b.body, local, c.rel, compile_vector(c.vector, self.smap), c.tol,
                              label)  # fmt: skip
         if isinstance(c, sc.Look):
             eyes = tuple((self.smap.bones[e].body, self.smap.bones[e].dir)

@@ -18,7 +18,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
 from azee_mj.kinematics import Unit
-from azee_mj.schedule import Compiler, make_solver, schedule
+from azee_mj.schedule import Compiler, TrackInterval, make_solver, schedule
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 
 #: Contacts deeper than this are drawn red [m] (the IK solver's penetration limit).
@@ -43,7 +43,7 @@ class Clip:
 
     Attributes:
       time: (T,) frame times [s]; ``qpos`` (T, nq) postures; ``fps`` frames per second.
-      schedule: per track, ``(block, start, end)`` intervals (empty without a score).
+      schedule: per track, the intervals blocks drive it (empty without a score).
       score: the realized score, or None (then no targets are drawn).
       name: a label (the input file's stem).
     """
@@ -51,7 +51,7 @@ class Clip:
     time: np.ndarray
     qpos: np.ndarray
     fps: float
-    schedule: Mapping[str, tuple[tuple[str, float, float], ...]]
+    schedule: Mapping[str, tuple[TrackInterval, ...]]
     score: sc.Score | None = None
     name: str = ""
 
@@ -63,9 +63,7 @@ class Clip:
     @classmethod
     def from_rollout(cls, rollout, score: sc.Score | None = None, name: str = "") -> Clip:
         """A clip of a :class:`~azee_mj.timeline.Rollout`."""
-        sched = {t: tuple((i.block, i.start, i.end) for i in v)
-                 for t, v in rollout.schedule.items()}  # fmt: skip
-        return cls(rollout.time, rollout.qpos, float(rollout.fps), sched, score, name)
+        return cls(rollout.time, rollout.qpos, float(rollout.fps), rollout.schedule, score, name)
 
     def frame_at(self, t: float) -> int:
         """Index of the frame nearest to time ``t`` [s]."""
@@ -76,16 +74,15 @@ class Clip:
         t = float(self.time[frame])
         out = {}
         for track, ivs in self.schedule.items():
-            names = [b for b, s, e in ivs if s - 1e-9 <= t < e - 1e-9 or (t >= e - 1e-9 and
-                     e >= self.duration - 1e-9 and s <= t)]  # fmt: skip
+            names = [i.block for i in ivs if i.start - 1e-9 <= t < i.end - 1e-9 or (
+                     t >= i.end - 1e-9 and i.end >= self.duration - 1e-9 and i.start <= t)]  # fmt: skip
             out[track] = names[-1] if names else ""
         return out
 
 
-def schedule_of(score: sc.Score) -> dict:
-    """The per-track ``(block, start, end)`` intervals of a score, without solving it."""
-    sched = schedule(score, shared_solver())
-    return {t: tuple((i.block, i.start, i.end) for i in v) for t, v in sched.items()}
+def schedule_of(score: sc.Score) -> dict[str, tuple[TrackInterval, ...]]:
+    """Per track, the intervals blocks of ``score`` drive it, without solving anything."""
+    return schedule(score, shared_solver())
 
 
 _SOLVER: ik.Solver | None = None

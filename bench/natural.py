@@ -336,6 +336,28 @@ def table(recs: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def compact_table(recs: list[dict]) -> str:
+    """One row per contact, right / left-handed values side by side."""
+    lines = [("| contact | residual mm R / L | pen. pair mm R / L | pen. other mm R / L "
+             "| trunk deg R / L | head deg R / L | RULA R / L | mirror mm | max rad/s | missed |"),
+             "|" + " --- |" * 10]
+    by = {}
+    for r in recs:
+        by.setdefault(r["contact"], {})[r["side"]] = r
+    for name, rl in by.items():
+        r, le = rl["R"], rl["L"]
+        miss = sorted({k for x in (r, le) for k, ok in verdicts(x).items() if not ok})
+        lines.append(
+            f"| {name} | {r['residual_mm']:.2f} / {le['residual_mm']:.2f} "
+            f"| {r['pair_penetration_mm']:.2f} / {le['pair_penetration_mm']:.2f} "
+            f"| {r['other_penetration_mm']:.2f} / {le['other_penetration_mm']:.2f} "
+            f"| {r['trunk_deg']:.0f} / {le['trunk_deg']:.0f} | {r['head_deg']:.0f} / "
+            f"{le['head_deg']:.0f} | {r['rula']} / {le['rula']} | {r['mirror_mm']:.1f} "
+            f"| {max(r.get('max_joint_speed', 0.0), le.get('max_joint_speed', 0.0)):.1f} "
+            f"| {', '.join(miss) or '-'} |")
+    return "\n".join(lines)
+
+
 def summary_table(summaries: dict[str, dict]) -> str:
     keys = ["contact", "pair_pen", "other_pen", "trunk", "head", "elbows", "rula", "mirror",
             "speed", "all_targets"]  # fmt: skip
@@ -423,6 +445,8 @@ def main(argv=None) -> int:
     ap.add_argument("--label", help="write bench/results/natural-LABEL.json")
     ap.add_argument("--no-mink", action="store_true", help="skip the mink baseline")
     ap.add_argument("--sheet", type=Path, help="render the right-handed contact sheet here")
+    ap.add_argument("--markdown", action="store_true",
+                    help="print one row per contact (R / L side by side)")
     args = ap.parse_args(argv)
     contacts = [c for c in CONTACTS if not args.quick or c[0] in QUICK]
     meas = Measure()
@@ -452,7 +476,7 @@ def main(argv=None) -> int:
             rr["mirror_mm"] = rl["mirror_mm"] = mir
             mink_recs += [rr, rl]
         summaries["mink"] = summarise(mink_recs)
-    print(table(ours))
+    print(compact_table(ours) if args.markdown else table(ours))
     print()
     print(summary_table(summaries))
     if args.sheet:

@@ -7,9 +7,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from azee_mj.errors import AzeeError
+
+if TYPE_CHECKING:
+    from azee_mj.markers import Clip
 
 
 def _cmd_sites(args) -> int:
@@ -37,32 +44,25 @@ def _v(v) -> str:
 
 def _cmd_check(args) -> int:
     from azee_mj.check import check_poses, summary
-    from azee_mj.export import load_rollout_arrays
     from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
 
-    arrays = load_rollout_arrays(args.rollout)
     model = load_model()
-    if arrays["qpos"].shape[1] != model.nq:
-        raise AzeeError(
-            f"{args.rollout}: qpos has {arrays['qpos'].shape[1]} columns; the bundled signer "
-            f"has nq={model.nq}"
-        )
+    rollout = load_rollout(args.rollout, model.nq)
     allowed, score, solver = frozenset(), None, None
     if args.score:
-        from azee_mj.ik import Solver
+        from azee_mj.schedule import contact_pairs, make_solver
         from azee_mj.score import load_score
-        from azee_mj.timeline import contact_pairs
 
-        score, solver = load_score(args.score), Solver()
-        allowed = contact_pairs(score, arrays["time"], solver)
-    report = check_poses(model, arrays["qpos"], allowed=allowed)
-    fps = float(arrays["fps"]) if "fps" in arrays else None
-    print(summary(report, fps))
+        score, solver = load_score(args.score), make_solver()
+        allowed = contact_pairs(score, rollout.time, solver)
+    report = check_poses(model, rollout.qpos, allowed=allowed)
+    print(summary(report, rollout.fps))
     ok = report.clean
     if score is not None:
         from azee_mj.timeline import residual_summary
 
-        text, within = residual_summary(score, arrays, solver)
+        text, within = residual_summary(score, rollout, solver)
         print(text)
         ok = ok and within
     return 0 if ok else 1
@@ -83,7 +83,8 @@ class _Progress:
 
 
 def _cmd_realize(args) -> int:
-    from azee_mj.export import save_json, save_npz
+    from azee_mj.files import save_json
+    from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
 
@@ -91,7 +92,7 @@ def _cmd_realize(args) -> int:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
     score = load_score(args.score)
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_npz(args.output, rollout.arrays())
+    save_rollout(args.output, rollout)
     if args.report:
         save_json(args.report, rollout.report())
     s = rollout.stats
@@ -104,8 +105,36 @@ def _cmd_realize(args) -> int:
     return 0
 
 
+def load_clip(
+    path: str | os.PathLike,
+    *,
+    score: str | os.PathLike | None = None,
+    fps: float = 50.0,
+    progress: Callable[[float], None] | None = None,
+) -> Clip:
+    """A clip from ``SCORE.json`` (realized at ``fps``) or ``ROLLOUT.npz`` (with an optional
+    ``score`` for targets and the schedule)."""
+    from azee_mj import score as sc
+    from azee_mj.markers import Clip, schedule_of, shared_solver
+    from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
+    from azee_mj.timeline import realize
+
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        s = sc.load_score(path)
+        rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
+        return Clip.from_rollout(rollout, s, path.stem)
+    if path.suffix.lower() != ".npz":
+        raise AzeeError(f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix "
+                        f"{path.suffix!r}")  # fmt: skip
+    r = load_rollout(path, load_model().nq)
+    given = sc.load_score(Path(score)) if score else None
+    sched = schedule_of(given) if given is not None else {}
+    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
+
+
 def _clip(args, progress: bool = True):
-    from azee_mj.viewer import load_clip
 
     if args.fps is not None and args.fps <= 0:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
@@ -126,7 +155,7 @@ def _cmd_preview(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    from azee_mj.viewer import check_render_options, parse_size, render
+    from azee_mj.render import check_render_options, parse_size, render
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time)  # before realizing
@@ -174,7 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--score", help="the score it realizes: also report constraint residuals")
     c.set_defaults(func=_cmd_check)
 
-    from azee_mj.viewer import CAMERAS
+    from azee_mj.render import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
     v.add_argument("input", metavar="SCORE|ROLLOUT",

@@ -10,7 +10,7 @@ tolerance) held from 0.4 s to 0.8 s. Each is realized with ``azee_mj.timeline.re
 - the contact's worst residual over the held block (``Rollout.traces``);
 - penetration between the two bodies that carry the touching sites (limit: the solver's
   contact allowance, 0.5 mm) and between any other pair, over all frames (limit: none,
-  i.e. under the solver's collision-row tolerance ``ik.COLLISION_TOL``, 0.1 mm);
+  i.e. under the solver's collision-row tolerance ``cn.COLLISION_TOL``, 0.1 mm);
 - the naturalness metrics of :mod:`azee_mj.ergonomics` (trunk and head from upright, gaze,
   elbow and hand heights, RULA-style score);
 - whether the left-handed run mirrors the right-handed one: every site within 5 mm of the
@@ -47,11 +47,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
+from azee_mj import constraints as cn
 from azee_mj import ik, load_model
+from azee_mj import kinematics as kin
 from azee_mj.ergonomics import ergonomics
+from azee_mj.schedule import constraint_tracks, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
-from azee_mj.timeline import constraint_tracks, realize
+from azee_mj.timeline import realize
 
 FPS = 50.0
 HOLD = (0.4, 0.8)  # [s] the contact block
@@ -61,8 +64,8 @@ DEG = np.pi / 180.0
 
 #: Targets of issue 10.
 TARGETS = {
-    "contact_mm": 1.0, "pair_penetration_mm": ik.CONTACT_ALLOWANCE * 1e3,
-    "other_penetration_mm": ik.COLLISION_TOL * 1e3, "trunk_deg": 10.0, "head_deg": 15.0, "rula": 4,
+    "contact_mm": 1.0, "pair_penetration_mm": cn.CONTACT_ALLOWANCE * 1e3,
+    "other_penetration_mm": cn.COLLISION_TOL * 1e3, "trunk_deg": 10.0, "head_deg": 15.0, "rula": 4,
     "mirror_mm": 5.0, "joint_speed": 25.0,
 }  # fmt: skip
 
@@ -244,7 +247,7 @@ def mink_problem(contact, side: str, model: mujoco.MjModel):
     tracks = set(constraint_tracks(touch.constraints[0], model)) | {"spine"}
     free = tuple(j for t in sorted(tracks) for j in DEFAULT_MAP.tracks[t])
     site, at = (_resolve(x, side) for x in contact[4:6])
-    prob = ik.IKProblem((ik.Place(DEFAULT_MAP.sites[site], ik.SitePos(DEFAULT_MAP.sites[at]),
+    prob = ik.IKProblem((cn.Place(DEFAULT_MAP.sites[site], kin.SitePos(DEFAULT_MAP.sites[at]),
                                   0.001, "TOUCH"),), free)  # fmt: skip
     k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
     q0 = model.key_qpos[k].copy()
@@ -378,7 +381,7 @@ def contact_sheet(path: Path, contacts, postures: dict[str, np.ndarray], recs: d
     """Render each contact's held posture (right-handed) as a labelled tile."""
     from PIL import Image, ImageDraw
 
-    from azee_mj.viewer import gl_backend, scene_model
+    from azee_mj.render import gl_backend, scene_model
 
     gl_backend()
     w, h = size
@@ -450,7 +453,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     contacts = [c for c in CONTACTS if not args.quick or c[0] in QUICK]
     meas = Measure()
-    solver = ik.Solver()
+    solver = make_solver()
     ours, postures, by_name = [], {}, {}
     for c in contacts:
         rr, ro_r = run_ours(c, "R", meas, solver)
@@ -468,7 +471,7 @@ def main(argv=None) -> int:
     if not args.no_mink:
         import baselines
 
-        mk = baselines.MinkSolver(ik.Solver())
+        mk = baselines.MinkSolver(make_solver())
         for c in contacts:
             rr, pr = run_mink(c, "R", meas, mk)
             rl, pl = run_mink(c, "L", meas, mk)

@@ -11,8 +11,9 @@ remove the mark when a solver passes.
 import numpy as np
 import pytest
 
-from azee_mj import ik, load_model
+from azee_mj import load_model
 from azee_mj.ergonomics import ergonomics
+from azee_mj.schedule import make_solver
 from azee_mj.timeline import realize
 
 FLAT = {"flat": 1.0}
@@ -56,7 +57,7 @@ CASES = [
 
 @pytest.fixture(scope="module")
 def solver():
-    return ik.Solver()
+    return make_solver()
 
 
 @pytest.fixture(scope="module")

@@ -36,9 +36,9 @@ import mujoco
 import numpy as np
 
 from azee_mj import constraints as cn
-from azee_mj import ik
+from azee_mj import ik, mirror, reach
 from azee_mj import score as sc
-from azee_mj.motion import Key, Mode, Motion
+from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 
@@ -49,6 +49,9 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 # Records
 # ---------------------------------------------------------------------------------------
 
+
+#: Tracks that return to neutral when no block needs them.
+RELAXING = ("spine", "head")
 
 @dataclasses.dataclass(frozen=True)
 class ConstraintTrace:
@@ -164,11 +167,19 @@ class Realizer:
                  signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
         self.score, self.solver, self.fps, self.mode = score, solver, fps, mode
         self.sched = Schedule(score, solver, signer_map)
-        self.motion = Motion(self.sched, mode)
+        self.motion = Motion(self.sched, mode, fps)
         self.m, self.smap, self.comp = self.sched.m, self.sched.smap, self.sched.comp
         self.track_joints, self.track_dofs = self.sched.track_joints, self.sched.track_dofs
         self.home, self.blocks, self.by_path = self.sched.home, self.sched.blocks, self.sched.by_path
         self.n_key = 0
+        self.arms = reach.arms_of(self.smap)
+        hands = {a: solver.body_id(a.hand) for a in self.arms}
+        self._hand_of = lambda site: next(
+            (a for a, h in hands.items()
+             if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), h)), None)
+        ssp = self.smap.loci.get("ssp")
+        self._meet = ssp if ssp is not None and mujoco.mj_name2id(
+            self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
 
     @property
     def results(self) -> list[ik.IKResult]:
@@ -186,6 +197,12 @@ class Realizer:
         ev = self.sched.events()
         cstr = [(b, self.sched.block_constraints(b)) for b in self.blocks if b.kind is sc.BlockKind.CSTR]
         holds = [b for b in self.blocks if b.kind is sc.BlockKind.HOLD]
+        trills = [(b, dc.tracks) for b, cons in cstr for dc in cons
+                  if isinstance(dc.source, sc.Trill)]  # fmt: skip
+
+        def trill_tracks(t: float) -> list[set[str]]:
+            return [tr for b, tr in trills if b.start <= t < b.end]
+
         for t0, t1 in zip(ev[:-1], ev[1:]):
             items: list[Active] = []
             for b, cons in cstr:
@@ -203,6 +220,9 @@ class Realizer:
                         keys[t].append(Key(t0, t1, q, (), self.track_joints[t]))
                         held.add(t)
             items = [it for it in items if not it.driven.tracks <= held]
+            if self.mode is Mode.MULTITRACK:
+                busy = held.union(*(it.driven.tracks for it in items), *trill_tracks(t0))
+                self._relax(keys, state, busy, {it.driven.con for it in items}, t0, t1)
             if not items:
                 continue
             if self.mode is Mode.FLATTENED:
@@ -231,8 +251,24 @@ class Realizer:
                 for t in group:
                     d = self.track_dofs[t]
                     state[d] = res.qpos[d]
+                    if keys[t] and keys[t][-1].start == t0:
+                        keys[t].pop()  # recruited after all: no return to neutral here
                     keys[t].append(Key(t0, t1, res.qpos.copy(), tuple(cons), free))
         return keys
+
+    def _relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0: float,
+               t1: float) -> None:  # fmt: skip
+        """The trunk and the head return to neutral over ``[t0, t1)`` when no block needs
+        them: none drives them, and none that they were recruited for (their last key's
+        constraints) is still ``active``."""
+        for t in RELAXING:
+            d = self.track_dofs.get(t)
+            if d is None or t in busy or not keys[t] or set(keys[t][-1].cons) & active:
+                continue
+            if np.allclose(keys[t][-1].q[d], self.home[d], atol=SAME_POSTURE):
+                continue
+            state[d] = self.home[d]
+            keys[t].append(Key(t0, t1, self.home.copy(), (), self.track_joints[t], relax=True))
 
     def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float):
         """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
@@ -254,10 +290,13 @@ class Realizer:
             return kept, cons, free
         q0 = state.copy()
         places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
+        # Also start each arm in its natural two-bone posture for its hand's target.
+        seeds = reach.arm_seeds(self.solver, self.arms, cons, free, q0, self._hand_of, self._meet)
         if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
-            q0 = self.motion.solve(places, free, q0, t0).qpos
+            q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
-        res = self.motion.solve(cons, free, q0, t0)
+            seeds = ()
+        res = self.motion.solve(cons, free, q0, t0, seeds)
         self.n_key += 1
         return res, cons, free
 
@@ -370,16 +409,22 @@ def realize(
         raise ValueError(f"fps must be positive, got {fps}")
     smap = signer_map or DEFAULT_MAP
     solver = solver or make_solver(signer_map=smap)
-    r = Realizer(score, solver, fps, mode, smap)
+    # A left-handed score is realized as the mirror image of its right-handed mirror, so
+    # left- and right-handed signing are mirror images by construction.
+    flip = mirror.JointMirror.of(solver.model) if score.strong_side == "L" else None
+    r = Realizer(mirror.mirror_score(score) if flip else score, solver, fps, mode, smap)
     tick = progress or (lambda f: None)
     keys = r.key_postures()
     tick(0.4)
     q = r.frames(keys)
     tick(0.8)
     times = np.arange(q.shape[0]) / fps
+    own = Realizer(score, solver, fps, mode, smap) if flip else r
     # Residuals are those of the postures the blocks ask for: a trill is added on top.
-    traces = r.traces(q, times)
+    traces = own.traces(flip(q) if flip else q, times)
     q = r.motion.trills(q, times)
+    if flip:
+        q = flip(q)
     site_names = tuple(smap.sites)
     sids = np.array([solver.site_id(s) for s in smap.sites.values()])
     d = solver.data
@@ -396,7 +441,7 @@ def realize(
         solve_time=sum(x.time for x in res), total_time=_time.perf_counter() - t_start,
         per_problem_iterations=np.array([x.iterations for x in res]),
     )  # fmt: skip
-    return Rollout(fps, mode, times, q, site_names, site_pos, r.schedule(), traces, stats)
+    return Rollout(fps, mode, times, q, site_names, site_pos, own.schedule(), traces, stats)
 
 
 def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,

@@ -74,7 +74,7 @@ class IKProblem:
       seeds: postures (nq,) to start from besides the warm start (e.g. analytic arm
         postures); every start is tried and the best result by one cost kept.
       max_change: largest change of any free joint from the warm start [rad or m]: a
-        per-frame solve stays on the branch of the frame before (no restarts elsewhere).
+        per-frame solve stays on the branch of the frame before (restarts stay inside).
       natural: take the most natural posture among the solutions (False: the first one
         reached, e.g. for an intermediate solve).
     """
@@ -331,8 +331,8 @@ class Solver:
         if problem.max_change is not None:
             plan.lower = np.maximum(plan.lower, q_start - problem.max_change)
             plan.upper = np.minimum(plan.upper, q_start + problem.max_change)
-        # Every seed and the warm start, then (unless bound to the warm start) restarts
-        # until one meets everything; the best attempt by one cost is kept.
+        # Every seed and the warm start, then restarts (inside the max_change box) until one
+        # meets everything; the best attempt by one cost is kept.
         best = None
         iters = attempt = 0
         for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
@@ -340,7 +340,7 @@ class Solver:
             iters += run.iterations
             if best is None or run.rank < best.rank:
                 best = run
-        while best.rank[0] and attempt < self.restarts and problem.max_change is None:
+        while best.rank[0] and attempt < self.restarts:
             attempt += 1
             start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
             run = self._attempt(start, plan, history, transparent_first=attempt == 1)

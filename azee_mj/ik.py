@@ -77,6 +77,7 @@ class IKProblem:
         per-frame solve stays on the branch of the frame before (restarts stay inside).
       natural: take the most natural posture among the solutions (False: the first one
         reached, e.g. for an intermediate solve).
+      collide: keep the body out of itself (False: a transparent body, for diagnosis).
     """
 
     constraints: tuple[Constraint, ...]
@@ -88,6 +89,7 @@ class IKProblem:
     seeds: tuple[np.ndarray, ...] = dataclasses.field(default=(), compare=False)
     max_change: float | None = None
     natural: bool = True
+    collide: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -369,7 +371,7 @@ class Solver:
             # with the body transparent, then let the collision rows push parts apart.
             plan.collide = False
             start = self._lm(start, plan, history, POSTURE).q
-            plan.collide = True
+            plan.collide = plan.problem.collide
         run = self._lm(start, plan, history, POSTURE)
         iters += run.iterations
         if not run.done:
@@ -654,8 +656,9 @@ class Plan:
         self.lower, self.upper = solver.lower, solver.upper
         self.effort = Effort(m, solver.effort_dofs)
         self.natural = problem.natural
+        self.problem = problem
+        self.collide = problem.collide
         self.items: list[RowBlock] = []
-        self.collide = True
         self.prefer = solver.natural if problem.prefer is None else np.asarray(problem.prefer)
         self.cons = problem.constraints
         self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE

@@ -37,6 +37,11 @@ def _xyz(v) -> tuple[float, float, float]:
 _AXIS_NAME = {"left": "right", "right": "left"}
 
 
+def mirror_words(text: str) -> str:
+    """``text`` with every sided name in it swapped (``palm_R`` -> ``palm_L``)."""
+    return re.sub(r"[A-Za-z][A-Za-z0-9_]*", lambda m: mirror_name(m.group(0)), text)
+
+
 def _mirror(obj):
     """The mirror image of a score record (recursively)."""
     if isinstance(obj, tuple):

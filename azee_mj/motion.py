@@ -81,13 +81,17 @@ class Motion:
         """Solve ``cons`` moving joints ``free`` from ``q0`` (and ``seeds``, other starts),
         allowing the contacts of time ``t`` [s], each joint within ``max_change`` of ``q0``
         if given; every result is kept in ``results``."""
-        names = self.s.body_names
-        touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
-        problem = ik.IKProblem(tuple(cons), tuple(free), touching, q0, tuple(seeds), max_change,
-                               natural)  # fmt: skip
-        res = self.solver.solve(problem, q0)
+        res = self.solver.solve(self.problem(cons, free, q0, t, seeds, max_change, natural), q0)
         self.results.append(res)
         return res
+
+    def problem(self, cons, free, q0, t: float, seeds=(), max_change=None,
+                natural: bool = True) -> ik.IKProblem:  # fmt: skip
+        """The IK problem :meth:`solve` solves."""
+        names = self.s.body_names
+        touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
+        return ik.IKProblem(tuple(cons), tuple(free), touching, q0, tuple(seeds), max_change,
+                            natural)  # fmt: skip
 
     def soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
         """Soft targets keeping ``joints`` near posture ``qf`` (a blend to follow)."""

@@ -37,6 +37,7 @@ import numpy as np
 
 from azee_mj import constraints as cn
 from azee_mj import ik, mirror, reach
+from azee_mj.diagnose import diagnose
 from azee_mj import score as sc
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
@@ -68,6 +69,8 @@ class ConstraintTrace:
     start: float
     end: float
     values: np.ndarray
+    #: Why a constraint its key posture could not meet misses ("" if it was met).
+    reason: str = ""
 
     @property
     def worst(self) -> float:
@@ -81,8 +84,9 @@ class ConstraintTrace:
     def describe(self) -> str:
         """``BLOCK constraint i (kind): worst X mm (tol Y mm)``, in mm or degrees."""
         k, u = (1000.0, "mm") if self.unit == "m" else (float(np.degrees(1.0)), "deg")
+        why = f": {self.reason}" if self.reason and not self.ok else ""
         return (f"{self.block} constraint {self.index} ({self.kind}): worst {self.worst * k:.2f}"
-                f" {u} (tol {self.tol * k:.2f} {u})")
+                f" {u} (tol {self.tol * k:.2f} {u}){why}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,11 +176,18 @@ class Realizer:
         self.track_joints, self.track_dofs = self.sched.track_joints, self.sched.track_dofs
         self.home, self.blocks, self.by_path = self.sched.home, self.sched.blocks, self.sched.by_path
         self.n_key = 0
+        #: constraint label -> why its key posture misses it (see :mod:`azee_mj.diagnose`)
+        self.reasons: dict[str, str] = {}
         self.arms = reach.arms_of(self.smap)
         hands = {a: solver.body_id(a.hand) for a in self.arms}
         self._hand_of = lambda site: next(
             (a for a, h in hands.items()
              if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), h)), None)
+        uppers = {solver.body_id(a.upper): int(self.m.body_parentid[solver.body_id(a.upper)])
+                  for a in self.arms}  # fmt: skip
+        self._limb_root = lambda site: next(
+            (root for up, root in uppers.items()
+             if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), up)), None)
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
             self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
@@ -248,6 +259,10 @@ class Realizer:
                 if retry[0].converged or _violation(retry[0]) < sum(_violation(r) for r, _, _ in solved):
                     groups, solved = [group], [retry]
             for group, (res, cons, free) in zip(groups, solved):
+                if not res.converged:
+                    problem = self.motion.problem(cons, free, before, t0, natural=False)
+                    for dg in diagnose(self.solver, problem, res, before, self._limb_root):
+                        self.reasons.setdefault(dg.label, dg.detail)
                 for t in group:
                     d = self.track_dofs[t]
                     state[d] = res.qpos[d]
@@ -351,7 +366,8 @@ class Realizer:
                     vals[f] = ic.residual(self.solver.kinematics())
                 unit = "m" if isinstance(ic, cn.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
-                                           unit, b.start, b.end, vals))  # fmt: skip
+                                           unit, b.start, b.end, vals,
+                                           self.reasons.get(ic.label, "")))  # fmt: skip
         return tuple(out)
 
 
@@ -420,6 +436,8 @@ def realize(
     tick(0.8)
     times = np.arange(q.shape[0]) / fps
     own = Realizer(score, solver, fps, mode, smap) if flip else r
+    if flip:
+        own.reasons = {k: mirror.mirror_words(v) for k, v in r.reasons.items()}
     # Residuals are those of the postures the blocks ask for: a trill is added on top.
     traces = own.traces(flip(q) if flip else q, times)
     q = r.motion.trills(q, times)

@@ -195,10 +195,24 @@ def _mirror(v) -> tuple[float, float, float]:
 # vectors are given; the left side mirrors them (y -> -y).
 # ---------------------------------------------------------------------------------------
 
-#: Right-hand thumb axis and pad normal at qpos0 (thumb down and forward, pad toward the
-#: index finger side of the palm).
-THUMB_DIR_R = _unit((0.45, 0.30, -0.84))
-THUMB_NRM_R = _unit(np.cross(np.cross(THUMB_DIR_R, (-0.45, 0.89, 0.0)), THUMB_DIR_R))
+#: Right-hand thumb axis and pad normal at qpos0. The thumb is adducted: it lies along the
+#: radial (index) edge of the hand in the palm plane, diverging 25 degrees from the hand's
+#: long axis and tilted 3 degrees palmar so that its three capsules (radii 11.5, 9.5 and
+#: 8.5 mm) are flush with the palm's face; its pad faces the index finger (ulnar, in the
+#: palm plane), so that MCP and IP flexion curl it across the palm.
+_THUMB_DIVERGE, _THUMB_TILT = np.radians(25.0), np.radians(3.0)
+THUMB_DIR_R = _unit((np.sin(_THUMB_DIVERGE) * np.cos(_THUMB_TILT), np.sin(_THUMB_TILT),
+                     -np.cos(_THUMB_DIVERGE) * np.cos(_THUMB_TILT)))  # fmt: skip
+THUMB_NRM_R = _unit(np.cross((0.0, 1.0, 0.0), THUMB_DIR_R))
+#: The thumb of the `fist` morph [rad]: abducted out of the palm plane and curled over the
+#: index and middle fingers' middle phalanges.
+FIST_THUMB = MappingProxyType({"thumb_{X}_1_flex": -0.2, "thumb_{X}_1_abd": 0.9,
+                               "thumb_{X}_2_flex": 0.5, "thumb_{X}_3_flex": 0.9})  # fmt: skip
+#: A thumb-up hand's thumb [rad]: straight, along the radial side of the closed fingers.
+THUMB_UP = MappingProxyType({"thumb_{X}_1_flex": -0.2, "thumb_{X}_1_abd": 0.15,
+                             "thumb_{X}_2_flex": 0.0, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+#: Thumb MCP flexion [rad] that lays the adducted thumb's phalanges along the index finger.
+THUMB_FLAT_MCP = round(float(np.radians(25.0)), 6)
 
 _UP, _DOWN, _FWD = (0.0, 0.0, 1.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0)
 _PALMAR_R = (0.0, 1.0, 0.0)  # the right palm faces the body's midline at rest
@@ -272,15 +286,17 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     for f in FINGERS:
         m[f"{f}_bend"] = ({f"{f}_{{X}}_1_flex": 1.45}, True)
         m[f"{f}_hook"] = ({f"{f}_{{X}}_2_flex": 1.5, f"{f}_{{X}}_3_flex": 1.2}, True)
-    m["thumb_bend"] = ({"thumb_{X}_2_flex": 0.9, "thumb_{X}_3_flex": 0.6}, True)
-    m["thumb_hook"] = ({"thumb_{X}_3_flex": 1.2}, True)
+    # (the thumb leaves the palm plane, palmar, before it curls: it curls across the palm)
+    m["thumb_bend"] = ({"thumb_{X}_1_abd": 0.5, "thumb_{X}_2_flex": 0.9,
+                        "thumb_{X}_3_flex": 0.6}, True)  # fmt: skip
+    m["thumb_hook"] = ({"thumb_{X}_1_abd": 0.3, "thumb_{X}_3_flex": 1.2}, True)
     m["thumb_opposed"] = ({"thumb_{X}_1_flex": 0.5, "thumb_{X}_1_abd": 0.9}, True)
     m["thumb_spread"] = ({"thumb_{X}_1_flex": -0.4, "thumb_{X}_1_abd": 0.2}, True)
-    m["thumb_extended"] = (
-        {"thumb_{X}_1_flex": -0.3, "thumb_{X}_1_abd": 0.6, "thumb_{X}_2_flex": 0.0,
-         "thumb_{X}_3_flex": 0.0},
-        True,
-    )  # fmt: skip
+    # Morphs add (clipped to the ranges): thumb_extended is the change from the fist's thumb
+    # to a straight thumb along the fist's radial side, so fist + thumb_extended (a thumb-up
+    # hand) has a straight thumb. Alone (or with `flat`) its negative changes clip at the
+    # ranges: a straight thumb, its tip bent back 20 degrees.
+    m["thumb_extended"] = ({j: THUMB_UP[j] - FIST_THUMB[j] for j in FIST_THUMB}, True)
     m["fingers_spread"] = (
         {"index_{X}_1_spread": 0.3, "middle_{X}_1_spread": 0.0, "ring_{X}_1_spread": -0.2,
          "little_{X}_1_spread": -0.4},
@@ -288,15 +304,14 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     )  # fmt: skip
     fist = {j: v for f in FINGERS for j, v in
             ((f"{f}_{{X}}_1_flex", 1.5), (f"{f}_{{X}}_2_flex", 1.65), (f"{f}_{{X}}_3_flex", 1.0))}
-    # thumb curled over the index finger's middle phalanx (no interpenetration in the bundled
-    # signer's collision geometry)
-    fist.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.1,
-                 "thumb_{X}_2_flex": 0.8, "thumb_{X}_3_flex": 1.2})  # fmt: skip
+    # thumb curled over the index and middle fingers' middle phalanges, 1 mm clear of them
+    fist.update(FIST_THUMB)
     m["fist"] = (fist, True)
     flat = {j: 0.0 for j in _finger_joints()}
     flat.update({f"{f}_{{X}}_1_spread": 0.0 for f in FINGERS})
-    flat.update({"thumb_{X}_1_flex": 0.2, "thumb_{X}_1_abd": 0.1,
-                 "thumb_{X}_2_flex": 0.0, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+    # the thumb adducted along the index finger, in the palm plane (its phalanges parallel)
+    flat.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.0,
+                 "thumb_{X}_2_flex": THUMB_FLAT_MCP, "thumb_{X}_3_flex": 0.0})  # fmt: skip
     m["flat"] = (flat, True)
     m["shoulder_raise"] = ({"clav_{X}_elev": 0.45}, True)
     m["shoulder_shrug"] = ({"clav_{X}_elev": 0.35, "clav_{X}_prot": 0.15}, True)

@@ -124,6 +124,10 @@ class SignerMap:
       loci: locus name (``ssp``) -> model site name.
       morphs: morph id -> :class:`Morph`.
       tracks: articulator track -> model joint names it owns (used by the scheduler).
+      normals: AZee site -> outward unit normal of the skin at the site, in its body frame,
+        for every site on the skin (on the collision surface of its body part): a contact
+        between two such sites meets face to face, normals opposed.
+      interior: the AZee sites that are not on the skin (joint centres, the tongue tip).
     """
 
     sites: Mapping[str, str]
@@ -131,6 +135,9 @@ class SignerMap:
     loci: Mapping[str, str]
     morphs: Mapping[str, Morph]
     tracks: Mapping[str, tuple[str, ...]]
+    normals: Mapping[str, tuple[float, float, float]] = dataclasses.field(
+        default_factory=lambda: MappingProxyType({}))  # fmt: skip
+    interior: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
         """The catalogue as printed by ``azee-mj sites --json``."""
@@ -142,6 +149,8 @@ class SignerMap:
             },
             "loci": dict(self.loci),
             "morphs": list(self.morphs),
+            "normals": {k: list(v) for k, v in self.normals.items()},
+            "interior": list(self.interior),
         }
 
     def renamed(self, rename_site=None, rename_body=None, rename_joint=None) -> "SignerMap":
@@ -163,6 +172,8 @@ class SignerMap:
                 }
             ),
             tracks=_frozen({k: tuple(rj(j) for j in v) for k, v in self.tracks.items()}),
+            normals=self.normals,
+            interior=self.interior,
         )
 
 
@@ -181,7 +192,7 @@ def _frozen(d: dict) -> Mapping:
 def _unit(v) -> tuple[float, float, float]:
     a = np.asarray(v, float)
     a = a / np.linalg.norm(a)
-    return tuple(round(float(x), 6) for x in a)
+    return tuple(round(float(x), 6) + 0.0 for x in a)  # + 0.0: no -0.0
 
 
 def _mirror(v) -> tuple[float, float, float]:
@@ -326,15 +337,95 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     return m
 
 
+#: AZee sites of the bundled signer that are not on the skin: the wrist joint centres and
+#: the tongue tip (inside the closed mouth).
+_INTERIOR = ("TO", "WR_L", "WR_R")
+
+#: Outward skin normals at qpos0 (= in the body frame) of the midline sites and the right
+#: side's lateral sites (``{X}``), computed from the collision geometry by
+#: ``tools/build_signer.py`` (which checks them); the left side mirrors them.
+_NORMALS = {
+    "HEAD": (0.0, 0.0, 1.0),
+    "FH": (0.8902, 0.0, 0.4555),
+    "NO": (1.0, 0.0, -0.0),
+    "NSP": (0.9805, 0.0, -0.1967),
+    "MO": (0.8575, -0.0, -0.5144),
+    "CH": (0.5914, 0.0, -0.8063),
+    "BEB": (-1.0, 0.0, 0.0),
+    "NK": (0.9997, 0.0, 0.0235),
+    "ST": (0.9957, 0.0, 0.0925),
+    "AB": (0.9974, 0.0, 0.0719),
+    "ABST": (0.893, 0.0, 0.45),
+    "EB_{X}": (0.8602, -0.4917, 0.1356),
+    "EBi_{X}": (0.9578, -0.2612, 0.1198),
+    "EBe_{X}": (0.697, -0.7085, 0.1105),
+    "EYE_{X}": (1.0, 0.0, 0.0),
+    "TE_{X}": (0.405, -0.9102, 0.0866),
+    "CK_{X}": (0.6732, -0.7388, -0.0308),
+    "EAR_{X}": (0.0, -0.9999, 0.0101),
+    "LOBE_{X}": (0.1699, -0.9767, -0.1313),
+    "MO_{X}": (0.7853, -0.4031, -0.47),
+    "NO_{X}": (0.4091, -0.8069, -0.4261),
+    "NK_{X}": (0.0, -1.0, 0.0),
+    "ST_{X}": (0.8902, -0.4448, 0.0986),
+    "AB_{X}": (0.8858, -0.4576, 0.0772),
+    "ABST_{X}": (0.8019, -0.3554, 0.4803),
+    "SH_{X}": (0.0289, -0.1664, 0.9856),
+    "ARMpit_{X}": (0.0, 1.0, 0.0),
+    "ARM_{X}": (0.0, -1.0, 0.0),
+    "ARMsh_{X}": (0.0, -0.2425, 0.9701),
+    "EL_{X}": (0.0, 0.0, 1.0),
+    "ELi_{X}": (0.9678, 0.0, -0.2516),
+    "F_ARM_{X}": (0.0, -1.0, 0.0),
+    "F_ARMi_{X}": (0.0, 1.0, 0.0),
+    "WRt_{X}": (0.0, -1.0, -0.0),
+    "WRi_{X}": (0.1772, 0.9842, -0.0),
+    "PA_{X}": (0.0, 1.0, 0.0),
+    "H_BACK_{X}": (0.0, -1.0, 0.0),
+    "H_EDGE_{X}": (-1.0, 0.0, 0.0),
+    "viande_{X}": (0.0, 1.0, 0.0),
+}
+
+#: Digit sites' normals from the phalanx's bone axes: ``+1`` / ``-1`` times NRM (pad /
+#: back), or DIR (the tip).
+_DIGIT_NORMALS = {"KN": ("nrm", -1), "KNi": ("nrm", 1), "BACK": ("nrm", -1), "INT": ("nrm", 1),
+                  "PAD": ("nrm", 1), "NA": ("nrm", -1), "TIP": ("dir", 1)}  # fmt: skip
+
+
+def _bundled_normals(bones: Mapping[str, BoneMap]) -> dict[str, tuple[float, float, float]]:
+    out = {}
+    for key, v in _NORMALS.items():
+        if "{X}" not in key:
+            out[key] = _unit(v)
+            continue
+        for side in SIDES:
+            out[key.format(X=side)] = _unit(_mirror(v) if side == "L" else v)
+    for side in SIDES:
+        for letter, digit in DIGITS.items():
+            for stem in DIGIT_STEMS:
+                axis, sign = _DIGIT_NORMALS[stem]
+                b = bones[f"{digit}_{side}_3"]
+                out[f"{letter}_{stem}_{side}"] = _unit(sign * np.asarray(getattr(b, axis)))
+            for stem in PHALANX_STEMS:
+                axis, sign = _DIGIT_NORMALS[stem]
+                for n in PHALANGES:
+                    b = bones[f"{digit}_{side}_{n}"]
+                    out[f"{letter}_{stem}_{side}_{n}"] = _unit(sign * np.asarray(getattr(b, axis)))
+    return {name: out[name] for name in azee_site_names() if name in out}
+
+
 def _bundled_map() -> SignerMap:
     sites = {name: name for name in azee_site_names()}
     morphs = {k: Morph(_frozen(ch), sided) for k, (ch, sided) in _bundled_morphs().items()}
+    bones = _bundled_bones()
     return SignerMap(
         sites=_frozen(sites),
-        bones=_frozen(_bundled_bones()),
+        bones=_frozen(bones),
         loci=_frozen({name: name for name in LOCI}),
         morphs=_frozen(morphs),
         tracks=_frozen(_bundled_tracks()),
+        normals=_frozen(_bundled_normals(bones)),
+        interior=_INTERIOR,
     )
 
 

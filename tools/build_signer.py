@@ -276,6 +276,12 @@ def col(**a):
     return dict(cls="collision", **a)
 
 
+def shell(**a):
+    """A collision geom that overlaps the body's massive geoms (hair, ears, lips, the
+    deltoid...): it shapes the skin but adds no mass (density 0)."""
+    return dict(cls="collision", density=0, **a)
+
+
 def vis(material, **a):
     return dict(cls="visual", material=material, **a)
 
@@ -366,8 +372,8 @@ def build_neck_head(b2: Body) -> Body:
     head.geom(**ellipsoid(FACE, col()))
     nose_ft = [0.086, 0, 0.690, 0.100, 0, 0.656]
     head.geom(type="capsule", fromto=nose_ft, size=[0.008], **col())
-    head.geom(**ellipsoid(NOSE_BASE, col()))
-    head.geom(**ellipsoid(HAIR, col()))
+    head.geom(**ellipsoid(NOSE_BASE, shell()))
+    head.geom(**ellipsoid(HAIR, shell()))
     head.geom(**ellipsoid(CRANIUM, vis("skin")))
     head.geom(**ellipsoid(FACE, vis("skin")))
     head.geom(type="capsule", fromto=nose_ft, size=[0.008], **vis("skin"))
@@ -386,15 +392,15 @@ def build_neck_head(b2: Body) -> Body:
 
     def lateral(b):
         # ears
-        b.geom(**ellipsoid(EAR_R_SHAPE, col()))
+        b.geom(**ellipsoid(EAR_R_SHAPE, shell()))
         b.geom(**ellipsoid(EAR_R_SHAPE, vis("skin")))
         # the eyeball (under the lid): the eye bodies carry the visual eye, the head its
         # collision sphere (a sphere about the eye's centre does not change as it turns)
-        b.geom(type="sphere", pos=EYE_R, size=[EYE_RAD], **col())
+        b.geom(type="sphere", pos=EYE_R, size=[EYE_RAD], **shell())
         # upper lip (static, collision too); the lower lip is on the jaw, corners on mouth_X
         for ft in ([0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
                    [0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240]):
-            b.geom(type="capsule", fromto=ft, size=[0.0032], **col())
+            b.geom(type="capsule", fromto=ft, size=[0.0032], **shell())
             b.geom(type="capsule", fromto=ft, size=[0.0032], **vis("lips"))
         # lower eyelid rim (static)
         b.geom(type="capsule", fromto=[0.074, -0.024, 0.6815, 0.074, -0.040, 0.6835],
@@ -422,7 +428,7 @@ def build_neck_head(b2: Body) -> Body:
     def jaw_lat(b):  # lower lip (collision too)
         for ft in ([0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
                    [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135]):
-            b.geom(type="capsule", fromto=ft, size=[0.0036], **col())
+            b.geom(type="capsule", fromto=ft, size=[0.0036], **shell())
             b.geom(type="capsule", fromto=ft, size=[0.0036], **vis("lips"))
 
     both_sides(jaw_lat, jaw)
@@ -583,7 +589,7 @@ def build_arm() -> Body:
     clav.geom(type="capsule", fromto=trap, size=[0.032], **vis("shirt"))
     axis = unit(trap[3:] - trap[:3])
     acromion = trap[:3] + (0.140 - 0.035) / (0.150 - 0.035) * (trap[3:] - trap[:3])
-    clav.geom(type="sphere", pos=acromion, size=[0.032], **col())
+    clav.geom(type="sphere", pos=acromion, size=[0.032], **shell())
     up = np.array([0.0, 0.0, 1.0])
     clav.site("SH_{X}", acromion + 0.032 * unit(up - np.dot(up, axis) * axis))
 
@@ -598,7 +604,7 @@ def build_arm() -> Body:
     arm.geom(type="capsule", fromto=arm_ft, size=[0.041], **vis("shirt"))
     # the deltoid's roundness over the shoulder joint (collision: ARMsh is on it)
     deltoid = ARM_R + [-0.002, -0.004, 0.002]
-    arm.geom(type="sphere", pos=deltoid, size=[0.045], **col())
+    arm.geom(type="sphere", pos=deltoid, size=[0.045], **shell())
     arm.geom(type="sphere", pos=deltoid, size=[0.046], **vis("shirt"))
     arm.site("ARMsh_{X}", deltoid + 0.045 * unit([0.0, -0.25, 1.0]))
     arm.site("ARM_{X}", ARM_R + [0.0, -0.040, -0.15])
@@ -623,7 +629,7 @@ def build_arm() -> Body:
     # apex, the elbow's lowest point with the forearm vertical (an elbow resting on a hand);
     # with the arm straight it sits in the upper arm's end, as in the olecranon fossa
     olecranon = ELBOW_R + [-0.022, 0.0, 0.006]
-    farm.geom(type="sphere", pos=olecranon, size=[0.016], **col())
+    farm.geom(type="sphere", pos=olecranon, size=[0.016], **shell())
     farm.geom(type="sphere", pos=olecranon, size=[0.017], **vis("shirt"))
     farm.site("EL_{X}", olecranon + [0.0, 0.0, 0.016])
     farm.site("F_ARM_{X}", ELBOW_R + [0.0, -0.030, -0.11])

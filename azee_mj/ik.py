@@ -78,6 +78,9 @@ class IKProblem:
       natural: take the most natural posture among the solutions (False: the first one
         reached, e.g. for an intermediate solve).
       collide: keep the body out of itself (False: a transparent body, for diagnosis).
+      preferences: constraints that join the naturalness objective (rows scaled by their
+        tolerance), e.g. where two hands meet when nothing else says where.
+      restarts: further attempts when none meets everything (None: the solver's own).
     """
 
     constraints: tuple[Constraint, ...]
@@ -90,6 +93,8 @@ class IKProblem:
     max_change: float | None = None
     natural: bool = True
     collide: bool = True
+    preferences: tuple[Constraint, ...] = ()
+    restarts: int | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -342,7 +347,8 @@ class Solver:
             iters += run.iterations
             if best is None or run.rank < best.rank:
                 best = run
-        while best.rank[0] and attempt < self.restarts:
+        restarts = self.restarts if problem.restarts is None else problem.restarts
+        while best.rank[0] and attempt < restarts:
             attempt += 1
             start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
             run = self._attempt(start, plan, history, transparent_first=attempt == 1)
@@ -377,7 +383,7 @@ class Solver:
         if not run.done:
             run = self._lm(run.q, plan, history)
             iters += run.iterations
-        if not run.done:
+        if not run.met:
             return Attempt(run.q, (1, run.cost), iters)
         if not plan.natural:
             return Attempt(run.q, (0, 0.0), iters)
@@ -385,7 +391,13 @@ class Solver:
         return Attempt(q, (0, nat), iters + n_it)
 
     def _natural(self, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
-        return natural_rows(self.naturalness, plan.effort, self.data, plan.free)
+        r, J = natural_rows(self.naturalness, plan.effort, self.data, plan.free)
+        if not plan.problem.preferences:
+            return r, J
+        k = self.kinematics()
+        rows = [c.rows(k) for c in plan.problem.preferences]
+        return (np.concatenate([r, *(x for x, _ in rows)]),
+                np.vstack([J, *(j[:, plan.free] for _, j in rows)]))
 
     def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
         """The most natural posture among those that meet the constraints, from ``q`` that
@@ -451,7 +463,9 @@ class Solver:
                 e_new = self._evaluate(q_new, plan)
             rn_new, Jn_new = self._natural(plan)
             nat_new = float(rn_new @ rn_new)
-            ok = max(e_new.norms, default=0.0) <= stop and e_new.depth <= max(e.depth, 1e-5)
+            # never further from a constraint than the polish started, nor deeper
+            bound = max(stop, max(e.norms, default=0.0))
+            ok = max(e_new.norms, default=0.0) <= bound and e_new.depth <= max(e.depth, 1e-5)
             if ok and nat_new < nat:
                 gain = (nat - nat_new) / max(nat, 1e-12)
                 q, e, rn, Jn, nat = q_new, e_new, rn_new, Jn_new, nat_new
@@ -505,7 +519,7 @@ class Solver:
         it = 0
         for it in range(1, self.max_iter + 1):
             if max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL:
-                return LMRun(q, cost, True, it - 1)
+                return LMRun(q, cost, True, it - 1, True)
             H = J.T @ J
             g = J.T @ r
             if posture:
@@ -545,7 +559,8 @@ class Solver:
             if mu > 1e3 or float(res @ res) < 1e-20:
                 break
         done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
-        return LMRun(q, cost, done, it)
+        met = max(norms, default=0.0) <= 1.0 and depth <= 2 * COLLISION_TOL
+        return LMRun(q, cost, done, it, done or met)
 
     # -- equality constraints --------------------------------------------------------------
     def configure_equalities(self, problem: IKProblem, data: mujoco.MjData | None = None) -> int:
@@ -613,6 +628,9 @@ class LMRun:
     cost: float
     done: bool
     iterations: int
+    #: every constraint within its tolerance, nothing deeper than allowed (not ``done``
+    #: when it stalled short of the tolerance fraction)
+    met: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

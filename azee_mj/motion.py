@@ -34,6 +34,8 @@ BLEND_SPEED = 12.0
 #: Fastest a joint may turn between two frames solved one by one [rad/s]: a per-frame
 #: solve stays on the branch of the frame before.
 MAX_JOINT_SPEED = 20.0
+#: Restarts of a per-frame solve (inside its step box) when its start does not converge.
+FRAME_RESTARTS = 1
 
 
 class Mode(enum.Enum):
@@ -77,21 +79,24 @@ class Motion:
         self.frame_step = MAX_JOINT_SPEED / fps
 
     def solve(self, cons, free, q0, t: float, seeds=(), max_change=None,
-              natural: bool = True) -> ik.IKResult:  # fmt: skip
+              natural: bool = True, preferences=(), restarts=None) -> ik.IKResult:  # fmt: skip
         """Solve ``cons`` moving joints ``free`` from ``q0`` (and ``seeds``, other starts),
         allowing the contacts of time ``t`` [s], each joint within ``max_change`` of ``q0``
         if given; every result is kept in ``results``."""
-        res = self.solver.solve(self.problem(cons, free, q0, t, seeds, max_change, natural), q0)
+        problem = self.problem(cons, free, q0, t, seeds, max_change, natural, preferences)
+        if restarts is not None:
+            problem = dataclasses.replace(problem, restarts=restarts)
+        res = self.solver.solve(problem, q0)
         self.results.append(res)
         return res
 
     def problem(self, cons, free, q0, t: float, seeds=(), max_change=None,
-                natural: bool = True) -> ik.IKProblem:  # fmt: skip
+                natural: bool = True, preferences=()) -> ik.IKProblem:  # fmt: skip
         """The IK problem :meth:`solve` solves."""
         names = self.s.body_names
         touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
         return ik.IKProblem(tuple(cons), tuple(free), touching, q0, tuple(seeds), max_change,
-                            natural)  # fmt: skip
+                            natural, preferences=tuple(preferences))  # fmt: skip
 
     def soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
         """Soft targets keeping ``joints`` near posture ``qf`` (a blend to follow)."""
@@ -159,7 +164,6 @@ class Motion:
         paths = {b.path: self.transpath_points(b, q, times) for b in tp}
         sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
         limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
-        prev = None
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
@@ -181,18 +185,18 @@ class Motion:
                     # A blend that would pass through the body: push it out, staying close.
                     free = {j for tr in tracks for j in self.track_joints[tr]}
                     soft = self.soft_targets(q[f], free)
-                    q[f] = prev = self.solve(soft, sorted(free), q[f], t,
-                                             max_change=self.frame_step).qpos
+                    q[f] = self.solve(soft, sorted(free), q[f], t, max_change=self.frame_step,
+                                      restarts=0).qpos  # fmt: skip
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
             soft = self.soft_targets(q[f], free)
             q0 = q[f].copy()
-            if prev is not None:
+            if f > 0:  # from the frame before (final by now): the same branch
                 dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
-                q0[dofs] = prev[dofs]
-            res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step)
+                q0[dofs] = q[f - 1][dofs]
+            res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step,
+                             restarts=FRAME_RESTARTS)  # fmt: skip
             q[f] = res.qpos
-            prev = res.qpos
         return q
 
     def transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:

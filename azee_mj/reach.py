@@ -25,6 +25,8 @@ from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj.kinematics import SitePos
 
+#: The hand comes to its target from this far in front of the shoulder [m].
+APPROACH = 0.3
 #: The elbow's swivel out of the vertical plane through the shoulder-wrist line [rad].
 SWIVEL_OUT = np.deg2rad(25.0)
 
@@ -67,7 +69,7 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel.
 
     The wrist goes short of ``target`` by the hand point's distance from the wrist, on the
-    line from the shoulder (a straight wrist). Returns None when the joint
+    line from a point ``APPROACH`` in front of the shoulder (a straight wrist). Returns None when the joint
     frames are not the ones this solution assumes (another signer).
     """
     m, d = model, data
@@ -82,12 +84,14 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     w0 = d.xpos[bid[arm.hand]]
     l1 = float(np.linalg.norm(e0 - s))
     l2 = float(np.linalg.norm(w0 - e0))
-    # The hand continues the forearm (a straight wrist) toward the target.
+    # The hand continues the forearm (a straight wrist) toward the target, coming from in
+    # front of the shoulder (so it reaches the face or the chest from the front).
+    Rp = d.xmat[m.body_parentid[bid[arm.upper]]].reshape(3, 3)
     target = np.asarray(target, float)
-    reach_dir = (target - s) / max(float(np.linalg.norm(target - s)), 1e-9)
+    source = s + APPROACH * Rp[:, 0]
+    reach_dir = (target - source) / max(float(np.linalg.norm(target - source)), 1e-9)
     w = target - float(np.linalg.norm(np.asarray(hand_point, float) - w0)) * reach_dir
     # The arm's rest frame: the parent (clavicle) frame of the shoulder joints.
-    Rp = d.xmat[m.body_parentid[bid[arm.upper]]].reshape(3, 3)
     x = Rp.T @ (w - s)
     L = float(np.linalg.norm(x))
     L = min(max(L, abs(l1 - l2) + 1e-6), l1 + l2 - 1e-6)

@@ -122,9 +122,10 @@ class Compiler:
     def partner_sites(self, c) -> tuple[str, ...]:
         """Model sites of another arm or hand that placement ``c`` brings its site to.
 
-        That arm moves too, both parts meeting (a hand on the other hand, a point beside the
-        other wrist). A target on the head or trunk is a location the body holds where it
-        is: the hand goes to the face, not the face to the hand.
+        That arm moves too, both parts meeting (a hand on the other hand or forearm, a point
+        beside the other wrist). A target on the head, the trunk, a shoulder or an upper arm
+        is a location the body holds where it is: the hand goes to the face, not the face to
+        the hand.
         """
         if not isinstance(c, sc.Place):
             return ()
@@ -133,8 +134,21 @@ class Compiler:
             sites = [] if c.at.ref.locus else [self.site(c.at.ref)]
         else:
             sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
-        return tuple(s for s in sites
-                     if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+        return tuple(s for s in sites if self.on_forearm(s)
+                     and any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+
+    def on_forearm(self, site: str) -> bool:
+        """Whether model ``site`` rides on a forearm or hand (a part the other arm brings to
+        a contact; the shoulder and the upper arm stay where they are)."""
+        m = self.m
+        body = int(m.site_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)])
+        fore = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, self.smap.bones[b].body)
+                for b in ("f_arm_L", "f_arm_R") if b in self.smap.bones}  # fmt: skip
+        while body > 0:
+            if body in fore:
+                return True
+            body = int(m.body_parentid[body])
+        return False
 
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""

@@ -38,10 +38,11 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik, mirror, reach
 from azee_mj.diagnose import diagnose
+from azee_mj.kinematics import BodyAxis, SitePos
 from azee_mj import score as sc
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
-from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.sites import DEFAULT_MAP, DIGITS, SignerMap
 
 __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "realize",
            "residual_summary", "score_traces"]
@@ -49,6 +50,29 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 # ---------------------------------------------------------------------------------------
 # Records
 # ---------------------------------------------------------------------------------------
+
+
+#: How nearly two skin surfaces a placement joins face each other [rad], by the hand part
+#: that touches: flat parts of the hand meet flat, a finger pad nearly so, a fingertip or a
+#: knuckle touches at an angle (a finger does not point straight into the face).
+FACING_TOL = {"PA": 5.0, "H_BACK": 5.0, "H_EDGE": 10.0, "viande": 20.0, "PAD": 30.0,
+              "TIP": 60.0, "NA": 45.0, "KN": 45.0, "KNi": 45.0, "BACK": 45.0, "INT": 45.0}
+#: How far from the signing space two joined hands may drift at the cost of one unit of
+#: naturalness [m].
+MEET_TOL = 0.1
+#: Two parts neither of which is a hand part (an elbow on the chest).
+FACING_TOL_BODY = 20.0
+
+
+def _facing_tol(a: str, b: str) -> float:
+    """The facing tolerance [rad] of AZee sites ``a`` and ``b`` brought together."""
+    def hand(site: str) -> float:
+        parts = site.split("_")
+        if len(parts) > 1 and parts[0] in DIGITS and parts[1] in FACING_TOL:
+            return FACING_TOL[parts[1]]  # a finger part: I_TIP_R, T_KN_R_1
+        return next((t for stem, t in FACING_TOL.items() if site.startswith(stem + "_")), 0.0)
+
+    return np.radians(max(hand(a), hand(b)) or FACING_TOL_BODY)
 
 
 #: Tracks that return to neutral when no block needs them.
@@ -188,6 +212,7 @@ class Realizer:
         self._limb_root = lambda site: next(
             (root for up, root in uppers.items()
              if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), up)), None)
+        self._azee_site = {model: azee for azee, model in self.smap.sites.items()}
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
             self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
@@ -311,9 +336,52 @@ class Realizer:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
             seeds = ()
-        res = self.motion.solve(cons, free, q0, t0, seeds)
+        facing = self._facing(cons)
+        where = self._meeting_place(cons)
+        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)
         self.n_key += 1
-        return res, cons, free
+        if facing and not res.converged:
+            # Face to face is a preference below the score's constraints: without it?
+            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where)
+            self.n_key += 1
+            if plain.converged or _violation(plain) < _violation(res):
+                return plain, cons, free
+        return res, cons + facing, free
+
+    def _meeting_place(self, cons) -> tuple[cn.Place, ...]:
+        """Where two hands meet when nothing else places them: a preference (with the
+        naturalness, below the constraints) for the contact in the neutral signing space,
+        where signers join their hands, rather than low where holding them costs least."""
+        if self._meet is None:
+            return ()
+        placed = [c for c in cons if isinstance(c, cn.Place)]
+        joins = [c for c in placed if isinstance(c.target, SitePos) and self._hand_of(c.site)
+                 and self._hand_of(c.target.site) not in (None, self._hand_of(c.site))]  # fmt: skip
+        if len(joins) != 1 or len(placed) != 1:
+            return ()
+        return (cn.Place(joins[0].site, SitePos(self._meet), MEET_TOL, "meet"),)
+
+    def _facing(self, cons) -> list[cn.Orient]:
+        """For each placement of a skin site on another, the two surfaces face to face:
+        outward normals opposed (within ``FACING_TOL`` of the hand part), unless the score orients one of
+        the two bodies itself."""
+        oriented = {c.body for c in cons if isinstance(c, cn.Orient)}
+        out = []
+        for c in cons:
+            if not isinstance(c, cn.Place) or not isinstance(c.target, SitePos):
+                continue
+            a, b = self._azee_site.get(c.site), self._azee_site.get(c.target.site)
+            if a not in self.smap.normals or b not in self.smap.normals:
+                continue
+            ba, bb = (self.m.body(int(self.m.site_bodyid[self.solver.site_id(s)])).name
+                      for s in (c.site, c.target.site))  # fmt: skip
+            if ba in oriented or bb in oriented:
+                continue
+            tol = _facing_tol(a, b)
+            out.append(cn.Orient(ba, self.smap.normals[a], cn.Rel.OPP,
+                                 BodyAxis(bb, self.smap.normals[b]), tol,
+                                 f"{c.label}:facing"))  # fmt: skip
+        return out
 
     def _joint_targets(self, changes: dict[str, float], tol: float = 0.02):
         out = []

@@ -19,6 +19,7 @@ Units: metres, radians.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import mujoco
 import numpy as np
@@ -72,7 +73,7 @@ def _reach(solver, c, q, limb_root) -> Diagnosis | None:
         return None
     # the limb stretched straight: from its root joint through each joint to the site
     points = [d.xpos[x] for x in [root, *reversed(chain)]] + [d.site_xpos[sid]]
-    length = sum(float(np.linalg.norm(y - x)) for x, y in zip(points[:-1], points[1:]))
+    length = sum(float(np.linalg.norm(y - x)) for x, y in itertools.pairwise(points))
     target = solver.kinematics().value(c.target)
     dist = float(np.linalg.norm(target - d.xpos[root]))
     if dist <= length:

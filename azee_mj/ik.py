@@ -43,8 +43,6 @@ from azee_mj.constraints import (
     Rel,
     penetration_depth,
 )
-from azee_mj.natural import Effort, Naturalness
-from azee_mj.natural import rows as natural_rows
 from azee_mj.kinematics import (
     BodyAxis,
     BodyOrigin,
@@ -57,6 +55,8 @@ from azee_mj.kinematics import (
     Unit,
     skew,
 )
+from azee_mj.natural import Effort, Naturalness
+from azee_mj.natural import rows as natural_rows
 
 
 @dataclasses.dataclass(frozen=True)

@@ -159,7 +159,11 @@ class Compiler:
             return out
         if isinstance(c, sc.Orient):
             body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
-            return self.body_tracks(body, own_only=True)
+            own = self.body_tracks(body, own_only=True)
+            if all(t.startswith("hand") for t in own):
+                # a finger points with the whole arm, not by bending against its hand shape
+                own |= {t for t in self.body_tracks(body, own_only=False) if t.startswith("arm")}
+            return own
         if isinstance(c, sc.MorphC):
             out = set()
             for j in self.morph_changes(c):

@@ -37,9 +37,9 @@ import numpy as np
 
 from azee_mj import constraints as cn
 from azee_mj import ik, mirror, reach
+from azee_mj import score as sc
 from azee_mj.diagnose import diagnose
 from azee_mj.kinematics import BodyAxis, SitePos
-from azee_mj import score as sc
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
 from azee_mj.sites import DEFAULT_MAP, DIGITS, SignerMap
@@ -56,7 +56,7 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 #: that touches: flat parts of the hand meet flat, a finger pad nearly so, a fingertip or a
 #: knuckle touches at an angle (a finger does not point straight into the face).
 FACING_TOL = {"PA": 5.0, "H_BACK": 5.0, "H_EDGE": 10.0, "viande": 20.0, "PAD": 30.0,
-              "TIP": 60.0, "NA": 45.0, "KN": 45.0, "KNi": 45.0, "BACK": 45.0, "INT": 45.0}
+              "TIP": 20.0, "NA": 45.0, "KN": 45.0, "KNi": 45.0, "BACK": 45.0, "INT": 45.0}
 #: How far from the signing space two joined hands may drift at the cost of one unit of
 #: naturalness [m].
 MEET_TOL = 0.1
@@ -158,7 +158,7 @@ class Rollout:
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
             "constraints": [
                 {"block": t.block, "index": t.index, "kind": t.kind, "unit": t.unit,
-                 "tol": float(t.tol), "worst": t.worst, "ok": bool(t.ok)}
+                 "tol": float(t.tol), "worst": t.worst, "ok": bool(t.ok), "reason": t.reason}
                 for t in self.traces
             ],  # fmt: skip
             "all_within_tolerance": bool(all(t.ok for t in self.traces)),
@@ -267,9 +267,11 @@ class Realizer:
                 groups = [driven | (set(self.track_joints) - {"face", "eyes"})]
             else:
                 groups = _components([it.driven.tracks for it in items])
-            # Hand shapes and face first: a placed fingertip depends on its hand's shape.
-            groups.sort(key=lambda g: any(it.driven.con is not None for it in items
-                                          if it.driven.tracks & g))
+            # Hands (their shapes and finger orientations) and the face first: a placed
+            # fingertip depends on its hand's shape. Then sorted by name (deterministic).
+            groups.sort(key=lambda g: (not all(t.startswith(("hand", "face", "eyes")) for t in g),
+                                       any(it.driven.con is not None for it in items
+                                           if it.driven.tracks & g), sorted(g)))
             before = state.copy()
             solved = []
             for g in groups:
@@ -335,7 +337,6 @@ class Realizer:
         if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
-            seeds = ()
         facing = self._facing(cons)
         where = self._meeting_place(cons)
         res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)

@@ -208,8 +208,9 @@ def _mirrored(site_pos: np.ndarray, names) -> np.ndarray:
 
 def test_left_handed_signing_is_the_mirror_of_right_handed(solver):
     import json
+    from pathlib import Path
 
-    score = json.loads(open("examples/bien.json").read())
+    score = json.loads(Path("examples/bien.json").read_text())
     right = timeline.realize(score, solver=solver)
     left = timeline.realize({**score, "strong_side": "L"}, solver=solver)
     names = list(right.site_names)
@@ -235,3 +236,47 @@ def test_mirror_of_a_score_swaps_sides_and_reflects(solver):
     # a reflection M turns a x b into -(Ma x Mb)
     assert orient.vector.v.a.name == "right" and orient.vector.v.a.xyz == (0.0, -1.0, 0.0)
     assert mirror.mirror_score(mirror.mirror_score(m)).root.constraints[0] == place
+
+
+_UNREACHABLE = {
+    "format": "azee-score", "version": 1, "strong_side": "R",
+    "root": {"name": "R", "kind": "sync", "start": 0, "end": 1.0, "children": [
+        {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
+            {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [1.2, 0, 0]}}]},
+        {"name": "TWO", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "left"},
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "right"}]}]}}
+
+
+def test_a_miss_says_why(solver):
+    rollout = timeline.realize(_UNREACHABLE, solver=solver)
+    why = {f"{t.block}#{t.index}": t.reason for t in rollout.traces}
+    assert why["R.FAR#1"] == ("out of reach by 462 mm (the target is 1189 mm from clav_R, "
+                              "the limb reaches 727 mm)")
+    assert why["R.TWO#1"] == "conflicts with R.TWO#2: each can be met without the other"
+    assert why["R.TWO#2"] == "conflicts with R.TWO#1: each can be met without the other"
+
+
+def test_a_joint_limit_is_named(solver):
+    # The forearm straight up and the palm's DIR straight down: the wrist cannot fold back.
+    score = {"format": "azee-score", "version": 1, "strong_side": "R",
+             "root": {"name": "L", "kind": "cstr", "start": 0, "end": 0.5, "constraints": [
+                 {"type": "orient", "bone": "!f_arm(s)", "axis": "dir", "rel": "along",
+                  "vector": "up"},
+                 {"type": "orient", "bone": "!palm(s)", "axis": "dir", "rel": "along",
+                  "vector": {"add": ["down", {"scale": "fwd", "by": 0.3}]}}]}}
+    rollout = timeline.realize(score, solver=solver)
+    reasons = [t.reason for t in rollout.traces if not t.ok]
+    assert reasons and all(r.startswith(("stopped by the", "conflicts with")) for r in reasons)
+
+
+def test_realize_strict_exits_1_on_a_miss(tmp_path):
+    import json
+
+    from azee_mj.cli import main
+
+    score = tmp_path / "far.json"
+    score.write_text(json.dumps(_UNREACHABLE))
+    out = tmp_path / "far.npz"
+    assert main(["realize", str(score), "-o", str(out)]) == 0
+    assert main(["realize", str(score), "-o", str(out), "--strict"]) == 1

@@ -258,16 +258,16 @@ def test_a_miss_says_why(solver):
 
 
 def test_a_joint_limit_is_named(solver):
-    # The forearm straight up and the palm's DIR straight down: the wrist cannot fold back.
+    # The face turned straight back: the neck, head and trunk rotations all end at limits.
     score = {"format": "azee-score", "version": 1, "strong_side": "R",
              "root": {"name": "L", "kind": "cstr", "start": 0, "end": 0.5, "constraints": [
-                 {"type": "orient", "bone": "!f_arm(s)", "axis": "dir", "rel": "along",
-                  "vector": "up"},
-                 {"type": "orient", "bone": "!palm(s)", "axis": "dir", "rel": "along",
-                  "vector": {"add": ["down", {"scale": "fwd", "by": 0.3}]}}]}}
-    rollout = timeline.realize(score, solver=solver)
-    reasons = [t.reason for t in rollout.traces if not t.ok]
-    assert reasons and all(r.startswith(("stopped by the", "conflicts with")) for r in reasons)
+                 {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along",
+                  "vector": {"add": ["back", {"scale": "left", "by": 0.2}]}}]}}
+    (trace,) = timeline.realize(score, solver=solver).traces
+    assert not trace.ok
+    assert trace.reason.startswith("stopped by the upper limit of joint ")
+    assert trace.reason.split("joint ")[1].split(" ")[0] in (
+        DEFAULT_MAP.tracks["head"] + DEFAULT_MAP.tracks["spine"])
 
 
 def test_realize_strict_exits_1_on_a_miss(tmp_path):

@@ -102,7 +102,9 @@ def _cmd_realize(args) -> int:
           f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within tolerance")
     for t in bad[:5]:
         print(f"  {t.describe()}")
-    return 0
+    if len(bad) > 5:
+        print(f"  ... and {len(bad) - 5} more (see --report)")
+    return 1 if args.strict and bad else 0
 
 
 def load_clip(
@@ -196,6 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
                    help="blocks per articulator track (default) or the 2018 flattened method")
     r.add_argument("--report", help="also write residuals and timings to REPORT.json")
+    r.add_argument("--strict", action="store_true",
+                   help="exit 1 if any constraint is not met (default: 0, and say why)")
     r.set_defaults(func=_cmd_realize)
 
     c = sub.add_parser("check", help="check a rollout for penetrations and range violations")

@@ -210,7 +210,8 @@ def _html(r: Realization, images: dict[str, bytes]) -> str:
         scale, unit = (1000.0, "mm") if tr.unit == "m" else (180 / np.pi, "deg")
         worst.setdefault(tr.block, []).append(
             f"#{tr.index} {tr.kind} {tr.worst * scale:.2f} {unit}"
-            + ("" if tr.ok else f" (over {tr.tol * scale:.2f})"))
+            + ("" if tr.ok else f" (over {tr.tol * scale:.2f})")
+            + (f": {tr.reason}" if tr.reason and not tr.ok else ""))
     rows = []
     for b in r.score.blocks():
         detail = ""

@@ -308,9 +308,10 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     # hand) has a straight thumb. Alone (or with `flat`) its negative changes clip at the
     # ranges: a straight thumb, its tip bent back 20 degrees.
     m["thumb_extended"] = ({j: THUMB_UP[j] - FIST_THUMB[j] for j in FIST_THUMB}, True)
+    # The thumb spreads too: it lies along the index finger, which spreads toward it.
     m["fingers_spread"] = (
         {"index_{X}_1_spread": 0.3, "middle_{X}_1_spread": 0.0, "ring_{X}_1_spread": -0.2,
-         "little_{X}_1_spread": -0.4},
+         "little_{X}_1_spread": -0.4, "thumb_{X}_1_abd": 0.3},
         True,
     )  # fmt: skip
     fist = {j: v for f in FINGERS for j, v in

@@ -220,7 +220,21 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     assert np.abs(rollout.qpos[:, head] - rollout.qpos[0, head]).max() == 0.0
     allowed = contact_pairs(load_score(score), rollout.time, solver)
     assert set(allowed) == set(range(len(rollout.time) - 1))
-    assert {tuple(sorted(p)) for v in allowed.values() for p in v} == {("index_L_3", "index_R_3")}
+    # The two hands touch as parts: any body of one hand with any body of the other.
+    pairs = {tuple(sorted(p)) for v in allowed.values() for p in v}
+    m = solver.model
+    hand = {s: {m.body(b).name for b in range(m.nbody) if _in_hand(m, b, f"palm_{s}")}
+            for s in "LR"}  # fmt: skip
+    assert pairs == {tuple(sorted((a, b))) for a in hand["L"] for b in hand["R"]}
+    assert ("index_L_3", "index_R_3") in pairs
+
+
+def _in_hand(m, body: int, palm: str) -> bool:
+    while body > 0:
+        if m.body(body).name == palm:
+            return True
+        body = int(m.body_parentid[body])
+    return False
 
 
 def test_the_head_waits_for_a_hand_held_at_the_chin(solver):

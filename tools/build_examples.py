@@ -36,8 +36,12 @@ PROSE = ("x-faithful", "x-guessed")
 #: Digit handshapes (strong hand); 6-9 add a weak hand in hs_5.
 DIGIT_SHAPES = {0: "hs_o", 1: "hs_index", 2: "hs_v", 3: "hs_3", 4: "hs_4", 5: "hs_5"}
 DIGIT_SECONDS, DIGIT_LEAD = 0.7, 0.3
-#: Height of the palm above the locus, and half the gap between two hands [m].
-DIGIT_ABOVE, DIGIT_HALF_GAP = 0.1, 0.16
+#: Height of the palm above the locus, its offset to the strong side for one hand, and to
+#: each side for two hands [m].
+DIGIT_ABOVE, DIGIT_SIDE, DIGIT_HALF_GAP = 0.1, 0.1, 0.16
+#: How much a palm turns from forward toward the body's midline (0.4: 22 degrees); with the
+#: palm straight forward the arm cannot reach and the spine twists.
+DIGIT_PALM_IN = 0.4
 
 
 def write(path: Path, text: str) -> None:
@@ -103,14 +107,14 @@ def ix() -> dict:
 
 def hand(side: str, shape: str, lat: float) -> tuple[dict, dict]:
     """The handshape and the hand placement of one hand of a digit."""
-    at = {"translate": "$loc", "by": {"add": [{"scale": "up", "by": DIGIT_ABOVE}]}}
-    if lat:
-        at["by"]["add"].append({"scale": f"lat({side})", "by": lat})
+    at = {"translate": "$loc", "by": {"add": [{"scale": "up", "by": DIGIT_ABOVE},
+                                              {"scale": f"lat({side})", "by": lat}]}}
+    other = "w" if side == "s" else "s"
     shape_c = {"type": "morph", "id": shape, "weight": 1.0, "side": side}
     place = [
         {"type": "place", "site": f"@PA({side})", "at": at},
         {"type": "orient", "bone": f"!palm({side})", "axis": "nrm", "rel": "along",
-         "vector": "fwd"},
+         "vector": {"add": ["fwd", {"scale": f"lat({other})", "by": DIGIT_PALM_IN}]}},
         {"type": "orient", "bone": f"!palm({side})", "axis": "dir", "rel": "along",
          "vector": "up"},
     ]  # fmt: skip
@@ -119,7 +123,7 @@ def hand(side: str, shape: str, lat: float) -> tuple[dict, dict]:
 
 def digit(n: int) -> dict:
     if n <= 5:
-        hands = [hand("s", DIGIT_SHAPES[n], 0.0)]
+        hands = [hand("s", DIGIT_SHAPES[n], DIGIT_SIDE)]
     else:
         hands = [hand("w", "hs_5", DIGIT_HALF_GAP), hand("s", DIGIT_SHAPES[n - 5], DIGIT_HALF_GAP)]
     shape = [h[0] for h in hands]
@@ -129,8 +133,9 @@ def digit(n: int) -> dict:
         "x-source": f"LSF number {n}, palm forward, {DIGIT_ABOVE} m above 'loc",
         "x-guessed": "handshapes (1-4 index, +middle, thumb+index+middle, four fingers; 5 "
                      "spread; 0 half-bent with the thumb opposed; 6-9 a weak 5 and a strong "
-                     "n-5), the palm facing forward, fingers up, the height above the locus "
-                     f"and the timing ({DIGIT_LEAD} s lead-in, {DIGIT_SECONDS} s in all)",
+                     "n-5), the palm facing forward and 22 degrees inward, fingers up, the "
+                     "place (0.1 m above the locus, 0.1 m to the strong side; two hands 0.32 m "
+                     f"apart) and the timing ({DIGIT_LEAD} s lead-in, {DIGIT_SECONDS} s in all)",
         "x-params": LOC,
         "root": {"name": f"NB_{n}", "kind": "sync", "start": 0, "end": DIGIT_SECONDS,
                  "children": [

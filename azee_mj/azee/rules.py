@@ -178,7 +178,7 @@ _GE0 = {"minimum": 0.0}
 RULES: tuple[Rule, ...] = (
     Rule("seq", (Param("item", "score", list=True), Param("gap", "num", 0.0, **_GE0)),
          "the items in sequence, each starting 'gap seconds after the previous one ends",
-         "ours", "-", _seq),
+         "ours", "nothing: it only offsets its items", _seq),
     Rule("info-about", (_score("topic"), _score("info"), Param("hold", "num", 0.3, **_GE0)),
          "TOPIC, TOPIC_HOLD, INFO in sequence; BROWS (brows_raise 0.8) over the first two; "
          "BLINK over [end-0.4, end-0.2] unless INFO is shorter than 0.4 s or an info-about",

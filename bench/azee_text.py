@@ -21,9 +21,9 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from azee_mj import ik, timeline  # noqa: E402
-from azee_mj.azee import Lexicon, compile_text  # noqa: E402
-from azee_mj.score import load_score  # noqa: E402
+from azee_mj import ik, timeline
+from azee_mj.azee import Lexicon, compile_text
+from azee_mj.score import load_score
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -525,3 +525,34 @@ def test_a_handshape_and_another_morph_add():
     q = r.qpos[-1][model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT,
                                                          "index_R_1_flex")]]  # fmt: skip
     assert q == pytest.approx(0.5 * 1.45, abs=0.02)
+
+
+def test_cli_render_and_report_take_azee(tmp_path, capsys):
+    from azee_mj import viewer
+    from azee_mj.errors import AzeeError
+
+    src = tmp_path / "five.azee"
+    src.write_text(":nb-5\n")
+    rep = tmp_path / "five.html"
+    assert main(["report", str(src), "-o", str(rep), "--fps", "10"]) == 0
+    assert "NB_5.HAND" in rep.read_text()
+    try:
+        viewer.gl_backend()
+    except AzeeError as e:
+        pytest.skip(f"no OpenGL backend, nothing can be rendered: {e}")
+    png = tmp_path / "five.png"
+    assert main(["render", str(src), "-o", str(png), "--time", "0.5", "--size", "160x120",
+                 "--fps", "10"]) == 0  # fmt: skip
+    assert png.stat().st_size > 0
+
+
+def test_the_front_end_imports_nothing_from_solving():
+    import subprocess
+    import sys
+
+    code = ("import sys, azee_mj.azee; azee_mj.azee.compile_text(':bien'); "
+            "print(' '.join(sorted(m for m in sys.modules if m.startswith('azee_mj'))))")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT).stdout.split()  # fmt: skip
+    assert not {"azee_mj.ik", "azee_mj.timeline", "azee_mj.viewer", "azee_mj.check",
+                "azee_mj.report"} & set(out), out  # fmt: skip

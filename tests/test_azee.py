@@ -414,6 +414,18 @@ def test_lexicon_errors(tmp_path):
                             ":seq; rename the file")  # fmt: skip
 
 
+def test_file_errors(tmp_path, capsys):
+    missing = tmp_path / "nope.azee"
+    assert main(["compile", str(missing)]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {missing}: cannot read the "
+                                       "expression: No such file or directory\n")  # fmt: skip
+    assert main(["compile", "-e", ":bien", "--lexicon", str(missing)]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {missing}: not a directory of signs "
+                                       "(--lexicon)\n")  # fmt: skip
+    assert main(["compile"]) == 2
+    assert capsys.readouterr().err == "azee-mj: error: compile: give one EXPR.azee file or -e TEXT\n"
+
+
 def test_deep_nesting_is_an_error():
     text = ":decidedly(" * 70 + ":bien" + ")" * 70
     with pytest.raises(ExpressionError) as e:
@@ -551,7 +563,7 @@ def test_the_front_end_imports_nothing_from_solving():
     import sys
 
     code = ("import sys, azee_mj.azee; azee_mj.azee.compile_text(':bien'); "
-            "print(' '.join(sorted(m for m in sys.modules if m.startswith('azee_mj'))))")  # fmt: skip
+            "print(' '.join(sorted(m for m in sys.modules if m.startswith('azee_mj'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, cwd=ROOT).stdout.split()  # fmt: skip
     assert not {"azee_mj.ik", "azee_mj.timeline", "azee_mj.viewer", "azee_mj.check",

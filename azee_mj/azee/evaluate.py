@@ -185,7 +185,7 @@ class _Evaluator:
                 kind = _kind_of(a.value)
                 if kind != p.kind:
                     raise self.err(f"'{p.name}: expected {KINDS[p.kind]}, got "
-                                   f"{_describe(a.value)}", a.value.line, a.value.col, here)  # fmt: skip
+                                   f"{_describe(a.value)}", a.value.line, a.value.col, here)
                 v = self.value(a.value, f"{here}'{p.name}")
                 if p.kind == "num":
                     self.check_num(p, v, a.value, here)
@@ -228,7 +228,7 @@ class _Evaluator:
             except KeyError as e:
                 declared = ", ".join(f"'{p.name}" for p in sign.params) or "none"
                 raise self.err(f"lexicon :{sign.name}: \"${e.args[0]}\" is not a declared "
-                               f"parameter; declared: {declared}", line, col, here) from None  # fmt: skip
+                               f"parameter; declared: {declared}", line, col, here) from None
             try:
                 load_score({"format": "azee-score", "version": 1, "strong_side": self.strong,
                             "root": {**root, "name": block_name(sign.name)}})  # fmt: skip

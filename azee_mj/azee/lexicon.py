@@ -58,7 +58,8 @@ class Lexicon:
         self._files: dict[str, Path] = {}
         for d in (*self.dirs, BUNDLED):
             if not d.is_dir():
-                raise ExpressionError(f"--lexicon {d}: not a directory", file=str(d), path="")
+                raise ExpressionError("not a directory of signs (--lexicon)", file=str(d),
+                                      path="")  # fmt: skip
             for p in sorted(d.iterdir()):
                 if p.suffix not in (".json", ".azee") or p.stem in self._files:
                     continue

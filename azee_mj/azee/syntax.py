@@ -220,7 +220,7 @@ class _Parser:
         if nxt < len(self.ls):
             h = self.ls[nxt][3]
             raise self.err("a second expression; a file holds one expression (arguments "
-                           "are indented deeper than their application)", h.line, h.col)  # fmt: skip
+                           "are indented deeper than their application)", h.line, h.col)
         return node
 
     def value(self, i: int) -> tuple[Node, int]:
@@ -252,7 +252,7 @@ class _Parser:
             if label is not None and node is None:
                 if i + 1 >= end or self.ls[i + 1][0] < indent or self.ls[i + 1][2] is None:
                     raise self.err(f"label '{label.text} without a value; put it on the next "
-                                   "line, at least as deep as the label", head.line, head.col)  # fmt: skip
+                                   "line, at least as deep as the label", head.line, head.col)
                 value, i = self.value(i + 1)
             else:
                 value, i = self.value(i)

@@ -227,6 +227,14 @@ def test_x_source_round_trips():
     assert compile_text(inline["x-source"]) == inline
 
 
+def test_compile_score_gives_a_score_record():
+    from azee_mj.azee import compile_score
+
+    score = compile_score(":tens-units(.nb-5, .nb-2)", strong_side="L")
+    assert score.strong_side == "L" and score.duration == pytest.approx(1.55)
+    assert score.block("TENS_UNITS.U.HAND").start == pytest.approx(1.15)
+
+
 def test_unicode_names_parse():
     node = parse(":été('lieu ^ssp)")
     assert node.name == "été" and node.args[0].label == "lieu"

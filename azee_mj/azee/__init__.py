@@ -13,21 +13,28 @@ solving or realizing.
 
 from azee_mj.azee.catalogue import Param
 from azee_mj.azee.errors import ExpressionError
-from azee_mj.azee.evaluate import compile_file, compile_text, dump_score, rules_catalogue
+from azee_mj.azee.evaluate import (
+    compile_file,
+    compile_score,
+    compile_text,
+    dump_score,
+    rules_catalogue,
+)
 from azee_mj.azee.lexicon import Lexicon, Sign
 from azee_mj.azee.rules import RULES, Rule
 from azee_mj.azee.syntax import parse
 
 __all__ = [
-           "RULES",
-           "ExpressionError",
-           "Lexicon",
-           "Param",
-           "Rule",
-           "Sign",
-           "compile_file",
-           "compile_text",
-           "dump_score",
-           "parse",
-           "rules_catalogue",
+    "RULES",
+    "ExpressionError",
+    "Lexicon",
+    "Param",
+    "Rule",
+    "Sign",
+    "compile_file",
+    "compile_score",
+    "compile_text",
+    "dump_score",
+    "parse",
+    "rules_catalogue",
 ]

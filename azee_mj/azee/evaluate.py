@@ -348,6 +348,12 @@ def compile_text(text: str, strong_side: str = "R", lexicon: Iterable[str | Path
     return compile_node(parse(text, file), strong_side=strong_side, lexicon=lex, file=file)
 
 
+def compile_score(text: str, strong_side: str = "R",
+                  lexicon: Iterable[str | Path] | Lexicon = (), *, file: str = "<text>"):  # fmt: skip
+    """:func:`compile_text`, loaded as a :class:`azee_mj.score.Score` record."""
+    return load_score(compile_text(text, strong_side, lexicon, file=file))
+
+
 def compile_file(path: str | Path, strong_side: str = "R",
                  lexicon: Iterable[str | Path] | Lexicon = ()) -> dict:  # fmt: skip
     """Compile the ``.azee`` file at ``path`` (see :func:`compile_text`)."""

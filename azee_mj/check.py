@@ -12,7 +12,7 @@ import dataclasses
 import mujoco
 import numpy as np
 
-from azee_mj.ik import PENETRATION_LIMIT
+from azee_mj.constraints import PENETRATION_LIMIT
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""The ``azee-mj`` command line: catalogue, realize, check, preview, render, report.
+"""The ``azee-mj`` command line: catalogue, compile and rules (the ``.azee`` front end),
+realize, check, preview, render, report.
 
 Bad input prints one message and exits with status 2; a failed check exits with 1.
 """
@@ -11,9 +12,14 @@ import json
 import os
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from azee_mj.errors import AzeeError
+
+if TYPE_CHECKING:
+    from azee_mj.markers import Clip
 
 
 def _cmd_sites(args) -> int:
@@ -58,6 +64,7 @@ def _add_lexicon(p: argparse.ArgumentParser) -> None:
 
 def _cmd_compile(args) -> int:
     from azee_mj.azee import compile_file, compile_text, dump_score
+    from azee_mj.files import atomic_path
 
     if (args.input is None) == (args.e is None):
         raise AzeeError("compile: give one EXPR.azee file or -e TEXT")
@@ -71,17 +78,8 @@ def _cmd_compile(args) -> int:
         sys.stdout.write(text)
         return 0
     out = Path(args.output)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".json", dir=out.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, out)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_path(out) as tmp:
+        tmp.write_text(text, encoding="utf-8")
     print(f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
           file=sys.stderr)  # fmt: skip
     return 0
@@ -115,32 +113,25 @@ def _v(v) -> str:
 
 def _cmd_check(args) -> int:
     from azee_mj.check import check_poses, summary
-    from azee_mj.export import load_rollout_arrays
     from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
 
-    arrays = load_rollout_arrays(args.rollout)
     model = load_model()
-    if arrays["qpos"].shape[1] != model.nq:
-        raise AzeeError(
-            f"{args.rollout}: qpos has {arrays['qpos'].shape[1]} columns; the bundled signer "
-            f"has nq={model.nq}"
-        )
+    rollout = load_rollout(args.rollout, model.nq)
     allowed, score, solver = frozenset(), None, None
     if args.score:
-        from azee_mj.ik import Solver
+        from azee_mj.schedule import contact_pairs, make_solver
         from azee_mj.score import load_score
-        from azee_mj.timeline import contact_pairs
 
-        score, solver = load_score(_score_arg(args.score, args)), Solver()
-        allowed = contact_pairs(score, arrays["time"], solver)
-    report = check_poses(model, arrays["qpos"], allowed=allowed)
-    fps = float(arrays["fps"]) if "fps" in arrays else None
-    print(summary(report, fps))
+        score, solver = load_score(_score_arg(args.score, args)), make_solver()
+        allowed = contact_pairs(score, rollout.time, solver)
+    report = check_poses(model, rollout.qpos, allowed=allowed)
+    print(summary(report, rollout.fps))
     ok = report.clean
     if score is not None:
         from azee_mj.timeline import residual_summary
 
-        text, within = residual_summary(score, arrays, solver)
+        text, within = residual_summary(score, rollout, solver)
         print(text)
         ok = ok and within
     return 0 if ok else 1
@@ -161,7 +152,8 @@ class _Progress:
 
 
 def _cmd_realize(args) -> int:
-    from azee_mj.export import save_json, save_npz
+    from azee_mj.files import save_json
+    from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
 
@@ -169,7 +161,7 @@ def _cmd_realize(args) -> int:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
     score = load_score(_score_arg(args.score, args))
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_npz(args.output, rollout.arrays())
+    save_rollout(args.output, rollout)
     if args.report:
         save_json(args.report, rollout.report())
     s = rollout.stats
@@ -182,8 +174,36 @@ def _cmd_realize(args) -> int:
     return 0
 
 
+def load_clip(
+    path: str | os.PathLike,
+    *,
+    score: str | os.PathLike | None = None,
+    fps: float = 50.0,
+    progress: Callable[[float], None] | None = None,
+) -> Clip:
+    """A clip from ``SCORE.json`` (realized at ``fps``) or ``ROLLOUT.npz`` (with an optional
+    ``score`` for targets and the schedule)."""
+    from azee_mj import score as sc
+    from azee_mj.markers import Clip, schedule_of, shared_solver
+    from azee_mj.model import load_model
+    from azee_mj.rollout_io import load_rollout
+    from azee_mj.timeline import realize
+
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        s = sc.load_score(path)
+        rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
+        return Clip.from_rollout(rollout, s, path.stem)
+    if path.suffix.lower() != ".npz":
+        raise AzeeError(f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix "
+                        f"{path.suffix!r}")  # fmt: skip
+    r = load_rollout(path, load_model().nq)
+    given = sc.load_score(Path(score)) if score else None
+    sched = schedule_of(given) if given is not None else {}
+    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
+
+
 def _clip(args, progress: bool = True):
-    from azee_mj.viewer import load_clip
 
     if args.fps is not None and args.fps <= 0:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
@@ -205,7 +225,7 @@ def _cmd_preview(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    from azee_mj.viewer import check_render_options, parse_size, render
+    from azee_mj.render import check_render_options, parse_size, render
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time)  # before realizing
@@ -270,7 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_lexicon(c)
     c.set_defaults(func=_cmd_check)
 
-    from azee_mj.viewer import CAMERAS
+    from azee_mj.render import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
     v.add_argument("input", metavar="SCORE|ROLLOUT",

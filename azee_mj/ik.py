@@ -1,4 +1,7 @@
-"""Posture solving: AZee constraints on the MuJoCo signer, with joint limits and self-collision.
+"""Posture solving: constraints on a MuJoCo model, with joint limits and self-collision.
+
+The solver knows nothing of AZee: the caller gives it the model and the per-joint weights
+(:func:`azee_mj.schedule.make_solver` builds both for a signer).
 
 An :class:`IKProblem` is everything that must hold at one instant. :class:`Solver` turns it
 into residual rows with exact Jacobians from MuJoCo's kinematics (``mj_jacSite``,
@@ -10,12 +13,8 @@ Placements with a fixed target and site-to-site contacts are also mirrored as Mu
 ``connect`` equality constraints on a pool of mocap targets in the solver's model
 (:meth:`Solver.configure_equalities`), so the viewer can draw them and a simulation can use
 them; their rows are the same as MuJoCo's (the tests compare them with ``efc_J``/``efc_pos``).
-MuJoCo has no equality for "axis along / opposite / perpendicular", so orientations and gaze
-are rows of our own (for a world axis ``a = R u``: ``a - v`` along, ``a . v`` perpendicular,
-``da/dq = -[a]x J_rot``).
-
-Self-collision is a one-sided penalty row per contact reported by ``mj_collision`` between
-non-excluded geoms: zero while the geoms are apart, ``depth`` when they penetrate.
+MuJoCo has no equality for "axis along / opposite / perpendicular"; those rows, and the
+self-collision rows, are in :mod:`azee_mj.constraints`.
 Infeasible problems are not errors: the solver returns its best posture, ``converged=False``
 and every constraint's residual.
 
@@ -25,260 +24,37 @@ Units: metres, radians, seconds.
 from __future__ import annotations
 
 import dataclasses
-import enum
 import time
+from collections.abc import Callable, Mapping
 
 import mujoco
 import numpy as np
 
-# ---------------------------------------------------------------------------------------
-# Kinematic expressions: points and vectors that may depend on the posture being solved.
-# Each evaluates to a value (3,) and its Jacobian (3, nv), or None when constant.
-# ---------------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class Const:
-    """A fixed point or vector in the signer frame [m or unitless]."""
-
-    value: tuple[float, float, float]
-
-
-@dataclasses.dataclass(frozen=True)
-class SitePos:
-    """The world position of a model site on the current posture [m]."""
-
-    site: str
-
-
-@dataclasses.dataclass(frozen=True)
-class BodyAxis:
-    """A unit axis fixed in a body (``local`` in the body frame), in world coordinates."""
-
-    body: str
-    local: tuple[float, float, float]
-
-
-@dataclasses.dataclass(frozen=True)
-class Lin:
-    """A linear combination ``sum(c * e)`` of expressions (translate, mid, from, scale, add)."""
-
-    terms: tuple[tuple[float, Expr], ...]
-
-
-@dataclasses.dataclass(frozen=True)
-class Cross:
-    """Cross product ``a x b``."""
-
-    a: Expr
-    b: Expr
-
-
-@dataclasses.dataclass(frozen=True)
-class Unit:
-    """``a / |a|``."""
-
-    a: Expr
-
-
-Expr = Const | SitePos | BodyAxis | Lin | Cross | Unit
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-class _Kin:
-    """Kinematic quantities of one posture, computed on demand and cached."""
-
-    def __init__(self, solver: Solver):
-        self.s = solver
-        self.m, self.d = solver.model, solver.data
-        self._site: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._bodyr: dict[int, np.ndarray] = {}
-
-    def site(self, sid: int) -> tuple[np.ndarray, np.ndarray]:
-        if sid not in self._site:
-            jac = np.empty((3, self.m.nv))
-            mujoco.mj_jacSite(self.m, self.d, jac, None, sid)
-            self._site[sid] = (self.d.site_xpos[sid].copy(), jac)
-        return self._site[sid]
-
-    def body_rot_jac(self, bid: int) -> np.ndarray:
-        if bid not in self._bodyr:
-            jac = np.empty((3, self.m.nv))
-            mujoco.mj_jacBody(self.m, self.d, None, jac, bid)
-            self._bodyr[bid] = jac
-        return self._bodyr[bid]
-
-    def eval(self, e: Expr, jac: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-        if isinstance(e, Const):
-            return np.asarray(e.value, float), None
-        if isinstance(e, SitePos):
-            sid = self.s.site_id(e.site)
-            if not jac:
-                return self.d.site_xpos[sid].copy(), None
-            return self.site(sid)
-        if isinstance(e, _BodyOrigin):
-            bid = self.s.body_id(e.body)
-            if not jac:
-                return self.d.xpos[bid].copy(), None
-            jp = np.empty((3, self.m.nv))
-            mujoco.mj_jacBody(self.m, self.d, jp, None, bid)
-            return self.d.xpos[bid].copy(), jp
-        if isinstance(e, BodyAxis):
-            bid = self.s.body_id(e.body)
-            a = self.d.xmat[bid].reshape(3, 3) @ np.asarray(e.local, float)
-            return a, (-_skew(a) @ self.body_rot_jac(bid) if jac else None)
-        if isinstance(e, Lin):
-            v, J = np.zeros(3), None
-            for c, t in e.terms:
-                tv, tj = self.eval(t, jac)
-                v = v + c * tv
-                if tj is not None:
-                    J = c * tj if J is None else J + c * tj
-            return v, J
-        if isinstance(e, Cross):
-            a, ja = self.eval(e.a, jac)
-            b, jb = self.eval(e.b, jac)
-            J = None
-            if ja is not None:
-                J = -_skew(b) @ ja
-            if jb is not None:
-                J = _skew(a) @ jb if J is None else J + _skew(a) @ jb
-            return np.cross(a, b), J
-        if isinstance(e, Unit):
-            a, ja = self.eval(e.a, jac)
-            n = np.linalg.norm(a)
-            if n < 1e-12:
-                return np.zeros(3), None if ja is None else np.zeros_like(ja)
-            u = a / n
-            return u, None if ja is None else (np.eye(3) - np.outer(u, u)) @ ja / n
-        raise TypeError(f"not a kinematic expression: {e!r}")
-
-
-# ---------------------------------------------------------------------------------------
-# Constraints: each gives residual rows (k,) and Jacobian rows (k, nv), and a report value.
-# Rows are divided by the constraint's tolerance, so |row| <= 1 means "within tolerance".
-# ---------------------------------------------------------------------------------------
-
-
-class Rel(enum.Enum):
-    """How a bone axis relates to a vector."""
-
-    ALONG = "along"
-    OPP = "opp"
-    PERP = "perp"
-
-
-@dataclasses.dataclass(frozen=True)
-class Place:
-    """Model site ``site`` at the point ``target``; within ``tol`` [m]."""
-
-    site: str
-    target: Expr
-    tol: float = 1e-3
-    label: str = ""
-
-    def rows(self, k: _Kin):
-        p, jp = k.site(k.s.site_id(self.site))
-        t, jt = k.eval(self.target)
-        return (p - t) / self.tol, (jp if jt is None else jp - jt) / self.tol
-
-    def residual(self, k: _Kin) -> float:
-        p = k.d.site_xpos[k.s.site_id(self.site)]
-        return float(np.linalg.norm(p - k.eval(self.target, jac=False)[0]))
-
-
-@dataclasses.dataclass(frozen=True)
-class Orient:
-    """Body axis ``local`` (a bone's DIR or NRM) along / opposite / perpendicular to
-    ``vector``; within ``tol`` [rad]."""
-
-    body: str
-    local: tuple[float, float, float]
-    rel: Rel
-    vector: Expr
-    tol: float = np.deg2rad(1.0)
-    label: str = ""
-
-    def _av(self, k: _Kin, jac: bool):
-        a, ja = k.eval(BodyAxis(self.body, self.local), jac)
-        v, jv = k.eval(Unit(self.vector), jac)
-        if self.rel is Rel.OPP:
-            v, jv = -v, (None if jv is None else -jv)
-        return a, ja, v, jv
-
-    def rows(self, k: _Kin):
-        a, ja, v, jv = self._av(k, True)
-        if self.rel is Rel.PERP:
-            r = np.array([a @ v])
-            J = (v @ ja)[None, :]
-            if jv is not None:
-                J = J + (a @ jv)[None, :]
-        else:
-            r = a - v
-            J = ja if jv is None else ja - jv
-        return r / self.tol, J / self.tol
-
-    def residual(self, k: _Kin) -> float:
-        a, _, v, _ = self._av(k, False)
-        c = float(np.clip(a @ v, -1.0, 1.0))
-        return abs(np.arcsin(c)) if self.rel is Rel.PERP else float(np.arccos(c))
-
-
-@dataclasses.dataclass(frozen=True)
-class Look:
-    """Each eye body's gaze axis ``local`` points at ``target``; within ``tol`` [rad]."""
-
-    eyes: tuple[tuple[str, tuple[float, float, float]], ...]
-    target: Expr
-    tol: float = np.deg2rad(1.0)
-    label: str = ""
-
-    def _orients(self) -> list[Orient]:
-        return [
-            Orient(body, local, Rel.ALONG, Lin(((1.0, self.target), (-1.0, _BodyOrigin(body)))),
-                   self.tol)
-            for body, local in self.eyes
-        ]  # fmt: skip
-
-    def rows(self, k: _Kin):
-        rows = [o.rows(k) for o in self._orients()]
-        return np.concatenate([r for r, _ in rows]), np.vstack([j for _, j in rows])
-
-    def residual(self, k: _Kin) -> float:
-        return max(o.residual(k) for o in self._orients())
-
-
-@dataclasses.dataclass(frozen=True)
-class _BodyOrigin:
-    body: str
-
-
-@dataclasses.dataclass(frozen=True)
-class JointTarget:
-    """Joint ``joint`` at ``value`` [rad or m], e.g. from a morph; within ``tol``."""
-
-    joint: str
-    value: float
-    tol: float = 0.02
-    label: str = ""
-    #: A soft target guides the posture but never blocks convergence (e.g. an interpolation).
-    soft: bool = False
-
-    def rows(self, k: _Kin):
-        j = k.s.joint_id(self.joint)
-        J = np.zeros((1, k.m.nv))
-        J[0, k.m.jnt_dofadr[j]] = 1.0 / self.tol
-        return np.array([(k.d.qpos[k.m.jnt_qposadr[j]] - self.value) / self.tol]), J
-
-    def residual(self, k: _Kin) -> float:
-        j = k.s.joint_id(self.joint)
-        return abs(float(k.d.qpos[k.m.jnt_qposadr[j]]) - self.value)
-
-
-Constraint = Place | Orient | Look | JointTarget
+from azee_mj.constraints import (
+    COLLISION_TOL,
+    CONTACT_ALLOWANCE,
+    PENETRATION_LIMIT,
+    Collisions,
+    Constraint,
+    JointTarget,
+    Look,
+    Orient,
+    Place,
+    Rel,
+    penetration_depth,
+)
+from azee_mj.kinematics import (
+    BodyAxis,
+    BodyOrigin,
+    Const,
+    Cross,
+    Kinematics,
+    Lin,
+    Names,
+    SitePos,
+    Unit,
+    skew,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -353,47 +129,39 @@ MU0 = 1e-3
 MAX_STEP = 0.4
 #: Weight of the natural-posture rows (per radian; a constraint row is 1 at its tolerance).
 POSTURE = 0.3
-#: Penetration depth [m] at which a collision row reaches 1 (its "tolerance").
-COLLISION_TOL = 1e-4
-#: Depth [m] allowed between two bodies that a contact constraint brings together.
-CONTACT_ALLOWANCE = 5e-4
-#: Deepest penetration [m] a converged posture may have between non-neighbouring geoms.
-PENETRATION_LIMIT = 1e-3
-
 
 class Solver:
-    """Solves :class:`IKProblem` s on one signer model.
+    """Solves :class:`IKProblem` s on one model.
 
     The solver compiles its own copy of the model with ``n_targets`` mocap targets and as
     many inactive ``connect`` equalities (see :meth:`configure_equalities`).
 
     Args:
-      model_path: the signer MJCF path or an ``MjSpec`` (default: the bundled signer).
-      signer_map: the AZee map of that signer (for joint groups and the natural posture).
+      model: an MJCF path or an ``MjSpec`` (copied).
+      joint_weights: joint name -> how dear moving it is in the damping and the natural-posture
+        preference (default 1; names the model lacks are ignored).
       max_iter: LM iterations per attempt.
       restarts: further attempts from other starts when an attempt does not converge.
       margin: collision margin [m] for detecting near contacts.
+      on_solve: called with each problem and its result, in solving order (an observer).
     """
 
     def __init__(
         self,
-        model_path=None,
-        signer_map=None,
+        model,
         *,
+        joint_weights: Mapping[str, float] | None = None,
         n_targets: int = 16,
         max_iter: int = 60,
         restarts: int = 3,
         margin: float = 0.004,
         seed: int = 0,
+        on_solve: Callable[[IKProblem, IKResult], None] | None = None,
     ):
-        from azee_mj.model import MODEL_PATH
-        from azee_mj.sites import DEFAULT_MAP
-
-        self.signer_map = signer_map or DEFAULT_MAP
-        if isinstance(model_path, mujoco.MjSpec):
-            spec = model_path.copy()
+        if isinstance(model, mujoco.MjSpec):
+            spec = model.copy()
         else:
-            spec = mujoco.MjSpec.from_file(str(model_path or MODEL_PATH))
+            spec = mujoco.MjSpec.from_file(str(model))
         add_target_pool(spec, n_targets)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
@@ -405,52 +173,41 @@ class Solver:
         self.max_iter = max_iter
         self.restarts = restarts
         self.seed = seed
-        self._ids: dict[tuple[int, str], int] = {}
+        self.on_solve = on_solve
+        self.names = Names(m)
         self.lower = np.where(m.jnt_limited, m.jnt_range[:, 0], -np.inf)[m.dof_jntid]
         self.upper = np.where(m.jnt_limited, m.jnt_range[:, 1], np.inf)[m.dof_jntid]
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
         self.natural = m.key_qpos[key].copy() if key >= 0 else m.qpos0.copy()
-        self.dof_weight = self._dof_weights()
+        self.dof_weight = np.ones(m.nv)
+        for j, w in (joint_weights or {}).items():
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            if jid >= 0:
+                self.dof_weight[m.jnt_dofadr[jid]] = w
 
     # -- names ------------------------------------------------------------------------
-    def _id(self, obj, name: str) -> int:
-        key = (int(obj), name)
-        i = self._ids.get(key)
-        if i is None:
-            i = mujoco.mj_name2id(self.model, obj, name)
-            if i < 0:
-                raise KeyError(f"the model has no {obj.name[6:].lower()} named {name!r}")
-            self._ids[key] = i
-        return i
-
     def site_id(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_SITE, name)
+        return self.names.site(name)
 
     def body_id(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_BODY, name)
+        return self.names.body(name)
 
     def joint_id(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_JOINT, name)
+        return self.names.joint(name)
 
-    def _dof_weights(self) -> np.ndarray:
-        """Per-dof damping: the trunk and neck are dearer to move than the arms."""
-        w = np.ones(self.model.nv)
-        cost = {"spine": 8.0, "head": 4.0}
-        for track, joints in self.signer_map.tracks.items():
-            for j in joints:
-                jid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, j)
-                if jid >= 0:
-                    w[self.model.jnt_dofadr[jid]] = cost.get(track, 3.0 if "clav" in j else 1.0)
-        return w
+    def kinematics(self) -> Kinematics:
+        """A :class:`~azee_mj.kinematics.Kinematics` on the posture in ``self.data``."""
+        return Kinematics(self.model, self.data, self.names)
 
     # -- problem set-up ---------------------------------------------------------------
-    def _bodies_of(self, c: Constraint) -> set[int]:
+    def bodies_of(self, c: Constraint) -> set[int]:
+        """The bodies whose motion changes constraint ``c``'s rows."""
         out: set[int] = set()
 
         def walk(e):
             if isinstance(e, SitePos):
                 out.add(int(self.model.site_bodyid[self.site_id(e.site)]))
-            elif isinstance(e, (BodyAxis, _BodyOrigin)):
+            elif isinstance(e, (BodyAxis, BodyOrigin)):
                 out.add(self.body_id(e.body))
             elif isinstance(e, Lin):
                 for _, t in e.terms:
@@ -483,21 +240,21 @@ class Solver:
             for c in problem.constraints:
                 if isinstance(c, JointTarget):
                     dofs.add(int(m.jnt_dofadr[self.joint_id(c.joint)]))
-                for b in self._bodies_of(c):
+                for b in self.bodies_of(c):
                     while b > 0:
                         a, n = m.body_dofadr[b], m.body_dofnum[b]
                         dofs.update(range(a, a + n))
                         b = m.body_parentid[b]
         return np.array(sorted(dofs), dtype=int)
 
-    def _joined_bodies(self, problem: IKProblem) -> set[tuple[int, int]]:
+    def joined_bodies(self, problem: IKProblem) -> set[tuple[int, int]]:
         """Body pairs a site-to-site placement brings together (allowed to touch)."""
         pairs = set()
         for a, b in problem.touching:
             pairs |= {(self.body_id(a), self.body_id(b)), (self.body_id(b), self.body_id(a))}
         for c in problem.constraints:
             if isinstance(c, Place):
-                bodies = self._bodies_of(c)
+                bodies = self.bodies_of(c)
                 for a in bodies:
                     for b in bodies:
                         if a != b:
@@ -505,12 +262,12 @@ class Solver:
         return pairs
 
     # -- rows ---------------------------------------------------------------------------
-    def _plan(self, problem: IKProblem) -> _Plan:
+    def plan(self, problem: IKProblem) -> Plan:
         """The problem compiled for this solver (rows, buffers, free dofs)."""
-        return _Plan(self, problem)
+        return Plan(self, problem)
 
-    def _evaluate(self, q, plan: _Plan):
-        """Residual rows (k,), Jacobian (k, len(free)), per-constraint row norms, depth."""
+    def _evaluate(self, q, plan: Plan) -> Rows:
+        """The rows of ``plan`` on posture ``q``."""
         m, d = self.model, self.data
         d.qpos[:] = q
         mujoco.mj_kinematics(m, d)
@@ -519,30 +276,12 @@ class Solver:
         norms = [float(np.sqrt(r[a:b] @ r[a:b])) for a, b in plan.hard]
         Jf = J[:, plan.free]
         depth = 0.0
-        if plan.collide:
-            mujoco.mj_collision(m, d)
-        n = d.ncon if plan.collide else 0
-        if n:
-            dist = d.contact.dist[:n]
-            geom = d.contact.geom[:n]
-            b1 = m.geom_bodyid[geom[:, 0]]
-            b2 = m.geom_bodyid[geom[:, 1]]
-            floor = plan.floor[b1, b2]
-            hit = np.flatnonzero(dist < floor)
-            if hit.size:
-                own = dist[hit][floor[hit] == 0.0]
-                depth = float(-own.min()) if own.size else 0.0
-                normal = d.contact.frame[hit, :3]
-                pos = d.contact.pos[hit]
-                j1, j2 = plan.cbuf1, plan.cbuf2
-                rows = np.empty((hit.size, plan.free.size))
-                for r_i, i in enumerate(hit):
-                    mujoco.mj_jac(m, d, j1, None, pos[r_i], b1[i])
-                    mujoco.mj_jac(m, d, j2, None, pos[r_i], b2[i])
-                    rows[r_i] = normal[r_i] @ (j2 - j1)[:, plan.free]
-                r = np.concatenate([r, (dist[hit] - floor[hit]) / COLLISION_TOL])
-                Jf = np.vstack([Jf, rows / COLLISION_TOL])
-        return r, Jf, norms, max(depth, 0.0)
+        hits = plan.collisions.rows(d) if plan.collide else None
+        if hits is not None:
+            depth = hits.depth
+            r = np.concatenate([r, hits.r])
+            Jf = np.vstack([Jf, hits.J])
+        return Rows(r, Jf, norms, max(depth, 0.0))
 
     # -- solve --------------------------------------------------------------------------
     def solve(self, problem: IKProblem, q0: np.ndarray | None = None) -> IKResult:
@@ -555,7 +294,7 @@ class Solver:
         q_start = np.clip(self.natural if q0 is None else np.asarray(q0, float),
                           self.lower, self.upper)  # fmt: skip
         cons = problem.constraints
-        plan = self._plan(problem)
+        plan = self.plan(problem)
         free = plan.free
         best = None
         history: list[float] = []
@@ -569,29 +308,33 @@ class Solver:
                 # Self-collision can trap the iteration in a corner: reach the constraints
                 # with the body transparent, then let the collision rows push parts apart.
                 plan.collide = False
-                start, _, _, n_it = self._lm(start, plan, history, POSTURE)
+                run = self._lm(start, plan, history, POSTURE)
+                start = run.q
                 plan.collide = True
-                iters += n_it
-            q, cost, ok, n_it = self._lm(start, plan, history, POSTURE)
-            iters += n_it
-            if not ok:
-                q, cost, ok, n_it = self._lm(q, plan, history)
-                iters += n_it
-            if best is None or cost < best[1]:
-                best = (q, cost)
-            if ok or attempt >= self.restarts:
+                iters += run.iterations
+            run = self._lm(start, plan, history, POSTURE)
+            iters += run.iterations
+            if not run.done:
+                run = self._lm(run.q, plan, history)
+                iters += run.iterations
+            if best is None or run.cost < best.cost:
+                best = run
+            if run.done or attempt >= self.restarts:
                 break
             attempt += 1
             start = self._restart_point(attempt, q_start, free)
-        q = best[0]
+        q = best.q
         residuals, depth = plan.report(q)
-        hard = [r for r, c in zip(residuals, cons) if not getattr(c, "soft", False)]
+        hard = [r for r, c in zip(residuals, cons) if not c.soft]
         converged = all(r.ok for r in hard) and depth <= PENETRATION_LIMIT
-        return IKResult(
+        result = IKResult(
             qpos=q, converged=converged, residuals=residuals, penetration=depth,
             iterations=iters, restarts=attempt, time=time.perf_counter() - t0,
             history=np.asarray(history),
         )  # fmt: skip
+        if self.on_solve is not None:
+            self.on_solve(problem, result)
+        return result
 
     def _restart_point(self, attempt, q_start, free):
         """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
@@ -610,16 +353,17 @@ class Solver:
         q[untouched] = q_start[untouched]
         return np.clip(q, self.lower, self.upper)
 
-    def _lm(self, q, plan, history, posture=0.0, stop=0.05):
+    def _lm(self, q, plan, history, posture=0.0, stop=0.05) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
-        ``posture * (q - natural)`` weighted per dof. Returns (q, cost, done, iterations),
-        ``done`` when every constraint row norm is under ``stop`` (its tolerance fraction)."""
+        ``posture * (q - natural)`` weighted per dof; ``done`` when every constraint row norm is
+        under ``stop`` (its tolerance fraction)."""
         free = plan.free
         lo, hi = self.lower[free], self.upper[free]
         w = self.dof_weight[free]
         nat = plan.prefer[free]
         q = q.copy()
-        r, J, norms, depth = self._evaluate(q, plan)
+        e = self._evaluate(q, plan)
+        r, J, norms, depth = e.r, e.J, e.norms, e.depth
         cost = float(r @ r)
         if posture:
             cost += posture**2 * float(w @ (q[free] - nat) ** 2)
@@ -632,7 +376,7 @@ class Solver:
         it = 0
         for it in range(1, self.max_iter + 1):
             if max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL:
-                return q, cost, True, it - 1
+                return LMRun(q, cost, True, it - 1)
             H = J.T @ J
             g = J.T @ r
             if posture:
@@ -647,7 +391,8 @@ class Solver:
             mujoco.mju_boxQP(res, R, None, Hd, g, lo_step, hi_step)
             q_new = q.copy()
             q_new[free] = np.clip(q[free] + res, lo, hi)
-            r_new, J_new, norms_new, depth_new = self._evaluate(q_new, plan)
+            e = self._evaluate(q_new, plan)
+            r_new, J_new, norms_new, depth_new = e.r, e.J, e.norms, e.depth
             cost_new = float(r_new @ r_new)
             if posture:
                 cost_new += posture**2 * float(w @ (q_new[free] - nat) ** 2)
@@ -671,7 +416,7 @@ class Solver:
             if mu > 1e3 or float(res @ res) < 1e-20:
                 break
         done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
-        return q, cost, done, it
+        return LMRun(q, cost, done, it)
 
     # -- equality constraints --------------------------------------------------------------
     def configure_equalities(self, problem: IKProblem, data: mujoco.MjData | None = None) -> int:
@@ -719,23 +464,40 @@ def add_target_pool(spec: mujoco.MjSpec, n: int) -> None:
         )  # fmt: skip
 
 
-def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> float:
-    """Deepest penetration [m] (>= 0) between colliding geoms of posture ``d.qpos``, ignoring
-    body pairs in ``allowed``. Runs ``mj_kinematics`` and ``mj_collision``."""
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_collision(m, d)
-    n = d.ncon
-    if not n:
-        return 0.0
-    dist = d.contact.dist[:n]
-    if allowed:
-        b = m.geom_bodyid[d.contact.geom[:n]]
-        keep = np.array([(x, y) not in allowed for x, y in b])
-        dist = dist[keep]
-    return float(max(0.0, -dist.min())) if dist.size else 0.0
+@dataclasses.dataclass(frozen=True)
+class Rows:
+    """The rows of a plan on one posture: residual (k,), Jacobian (k, free), each hard
+    constraint's row norm, and the deepest penetration [m] outside allowed pairs."""
+
+    r: np.ndarray
+    J: np.ndarray
+    norms: list[float]
+    depth: float
 
 
-class _Plan:
+@dataclasses.dataclass(frozen=True)
+class LMRun:
+    """One Levenberg-Marquardt run: its posture, cost, whether every row is within its
+    tolerance fraction, and its iterations."""
+
+    q: np.ndarray
+    cost: float
+    done: bool
+    iterations: int
+
+
+@dataclasses.dataclass(frozen=True)
+class RowBlock:
+    """One constraint's rows in a plan: ``fn(r_block, J_block)`` writes rows
+    ``[start, stop)``; ``scaled`` when they come already divided by the tolerance."""
+
+    fn: Callable[[np.ndarray, np.ndarray], None]
+    start: int
+    stop: int
+    scaled: bool
+
+
+class Plan:
     """A problem compiled for one solver: ids resolved, row blocks laid out, buffers made.
 
     Common constraint forms (a placement at a fixed point or on another site, an
@@ -747,11 +509,11 @@ class _Plan:
         m = solver.model
         self.s, self.m, self.d = solver, m, solver.data
         self.free = solver.free_dofs(problem)
-        self.joined = solver._joined_bodies(problem)
+        self.joined = solver.joined_bodies(problem)
         self.floor = np.zeros((m.nbody, m.nbody))
         for a, b in self.joined:
             self.floor[a, b] = -CONTACT_ALLOWANCE
-        self.items: list = []
+        self.items: list[RowBlock] = []
         self.collide = True
         self.prefer = solver.natural if problem.prefer is None else np.asarray(problem.prefer)
         self.cons = problem.constraints
@@ -762,8 +524,8 @@ class _Plan:
         row = 0
         for c in problem.constraints:
             fn, k, scaled = self._compile(c)
-            self.items.append((fn, row, row + k, scaled))
-            if not getattr(c, "soft", False):
+            self.items.append(RowBlock(fn, row, row + k, scaled))
+            if not c.soft:
                 self.hard.append((row, row + k))
             inv += [1.0 if scaled else 1.0 / c.tol] * k
             row += k
@@ -771,10 +533,10 @@ class _Plan:
         self.J = np.zeros((row, m.nv))
         self.r = np.zeros(row)
         self.tmp = np.empty((3, m.nv))
-        self.cbuf1, self.cbuf2 = np.empty((3, m.nv)), np.empty((3, m.nv))
-        for c, (_, a, _, _) in zip(problem.constraints, self.items):
+        self.collisions = Collisions(m, self.floor, self.free)
+        for c, item in zip(problem.constraints, self.items):
             if isinstance(c, JointTarget):
-                self.J[a, m.jnt_dofadr[solver.joint_id(c.joint)]] = 1.0
+                self.J[item.start, m.jnt_dofadr[solver.joint_id(c.joint)]] = 1.0
 
     def _compile(self, c):
         """(fn(r_block, J_block), number of rows, rows already scaled by 1/tol)."""
@@ -808,7 +570,7 @@ class _Plan:
             def orient(r, J):
                 mujoco.mj_jacBody(m, d, None, self.tmp, bid)
                 a = d.xmat[bid].reshape(3, 3) @ local
-                da = _skew(-a) @ self.tmp  # da/dq = -[a]x J_rot
+                da = skew(-a) @ self.tmp  # da/dq = -[a]x J_rot
                 if perp:
                     r[0] = a @ v
                     J[0] = v @ da
@@ -831,14 +593,14 @@ class _Plan:
             k = 1 if isinstance(c, Orient) and c.rel is Rel.PERP else 3
 
         def generic(r, J):
-            r[:], J[:] = c.rows(_Kin(s))
+            r[:], J[:] = c.rows(s.kinematics())
 
         return generic, k, True
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``."""
-        for fn, a, b, _ in self.items:
-            fn(self.r[a:b], self.J[a:b])
+        for it in self.items:
+            it.fn(self.r[it.start:it.stop], self.J[it.start:it.stop])
         return self.r * self.inv, self.J * self.inv[:, None]
 
     def report(self, q: np.ndarray) -> tuple[tuple[Residual, ...], float]:
@@ -849,11 +611,11 @@ class _Plan:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         out = []
-        for c, (fn, a, b, generic) in zip(self.cons, self.items):
-            fn(self.r[a:b], self.J[a:b])
-            r = self.r[a:b]
-            if generic:
-                value = c.residual(_Kin(self.s))
+        for c, it in zip(self.cons, self.items):
+            it.fn(self.r[it.start:it.stop], self.J[it.start:it.stop])
+            r = self.r[it.start:it.stop]
+            if it.scaled:
+                value = c.residual(self.s.kinematics())
             elif isinstance(c, Orient):
                 if c.rel is Rel.PERP:
                     value = float(np.arcsin(min(1.0, abs(r[0]))))

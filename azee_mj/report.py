@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
 from azee_mj.errors import AzeeError
@@ -28,18 +29,15 @@ HARDEST = 6
 _KIND_COLOR = {"cstr": "#4c72b0", "hold": "#8c8c8c", "transpath": "#dd8452"}
 
 
-class RecordingSolver(ik.Solver):
-    """An :class:`~azee_mj.ik.Solver` that keeps every problem it solves and its result,
-    in order (``records``); pass it to :func:`~azee_mj.timeline.realize`."""
+class Recorder:
+    """An observer of a solver (its ``on_solve``): keeps every problem solved and its
+    result, in order (``records``)."""
 
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
+    def __init__(self):
         self.records: list[tuple[ik.IKProblem, ik.IKResult]] = []
 
-    def solve(self, problem, q0=None):
-        res = super().solve(problem, q0)
-        self.records.append((problem, res))
-        return res
+    def __call__(self, problem: ik.IKProblem, result: ik.IKResult) -> None:
+        self.records.append((problem, result))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,12 +51,13 @@ class Realization:
 
 def realize_recorded(score, fps: float = 50.0, progress=None) -> Realization:
     """Realize ``score`` keeping every IK problem and result (with its cost history)."""
+    from azee_mj.schedule import make_solver
     from azee_mj.timeline import realize
 
     s = score if isinstance(score, sc.Score) else sc.load_score(score)
-    solver = RecordingSolver()
-    rollout = realize(s, fps=fps, solver=solver, progress=progress)
-    return Realization(s, rollout, tuple(solver.records))
+    recorder = Recorder()
+    rollout = realize(s, fps=fps, solver=make_solver(on_solve=recorder), progress=progress)
+    return Realization(s, rollout, tuple(recorder.records))
 
 
 def _plt():
@@ -138,7 +137,7 @@ def fig_convergence(r: Realization, k: int = HARDEST):
     for i in order:
         p, res = r.records[i]
         labels = sorted({c.label.split("#")[0] for c in p.constraints
-                         if isinstance(c, (ik.Place, ik.Orient, ik.Look))})  # fmt: skip
+                         if isinstance(c, (cn.Place, cn.Orient, cn.Look))})  # fmt: skip
         name = ", ".join(_short(lb, r.score.root.path) for lb in labels) or "joint targets"
         h = np.maximum(res.history, 1e-12)
         ax.semilogy(np.arange(1, len(h) + 1), h, marker=".",
@@ -262,7 +261,7 @@ def write_report(
     embedded, or, when ``out`` ends with ``/`` or is a directory, ``timeline.png``,
     ``ik_problems.png``, ``convergence.png`` and ``residuals.png`` in it. Atomic writes;
     returns the paths written."""
-    from azee_mj.export import atomic_path
+    from azee_mj.files import atomic_path
 
     out_s = str(out)
     as_dir = out_s.endswith(("/", os.sep)) or Path(out).is_dir()

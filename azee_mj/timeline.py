@@ -3,7 +3,7 @@
 The realizer (:func:`realize`) works in three steps.
 
 1. **Schedule.** Every constraint drives some tracks of the signer (``spine``, ``head``,
-   ``eyes``, ``face``, ``arm_X``, ``hand_X``; see :func:`constraint_tracks`). The block
+   ``eyes``, ``face``, ``arm_X``, ``hand_X``; see :mod:`azee_mj.schedule`). The block
    boundaries cut the score into segments; in each segment the active constraints are
    grouped into components of tracks they couple (a contact couples both arms).
 2. **Key postures.** Segments are solved in time order, each warm-started from the
@@ -29,47 +29,25 @@ Units: seconds, metres, radians.
 from __future__ import annotations
 
 import dataclasses
-import enum
 import time as _time
 from collections.abc import Callable, Mapping
 
 import mujoco
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
+from azee_mj.motion import Key, Mode, Motion
+from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 
-#: Longest blend between two postures of a track when the gap allows more [s].
-MAX_BLEND = 0.6
-#: Shortest blend when a posture must change with no gap [s].
-MIN_BLEND = 0.08
-#: Postures closer than this per joint [rad] are the same (the solver's accuracy).
-SAME_POSTURE = 2e-3
-#: Peak joint speed a blend is sized for [rad/s] (the limit is 25 rad/s).
-BLEND_SPEED = 12.0
-
-
-class Mode(enum.Enum):
-    """How the score is laid out in time."""
-
-    MULTITRACK = "multitrack"
-    FLATTENED = "flattened"
-
+__all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "realize",
+           "residual_summary", "score_traces"]
 
 # ---------------------------------------------------------------------------------------
 # Records
 # ---------------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class TrackInterval:
-    """Track ``track`` driven by block ``block`` over ``[start, end)`` [s]."""
-
-    track: str
-    block: str
-    start: float
-    end: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,21 +117,6 @@ class Rollout:
     traces: tuple[ConstraintTrace, ...]
     stats: SolveStats
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        """The arrays of the ``.npz`` export (numeric or fixed-width text)."""
-        tr = self.traces
-        return {
-            "time": self.time,
-            "qpos": self.qpos,
-            "fps": np.array(self.fps),
-            "mode": np.array(self.mode.value),
-            "site_names": np.array(self.site_names),
-            "site_pos": self.site_pos,
-            "residual_names": np.array([f"{t.block}#{t.index}" for t in tr], dtype=str),
-            "residual_tol": np.array([t.tol for t in tr]),
-            "residuals": np.array([t.values for t in tr]).reshape(len(tr), len(self.time)),
-        }
-
     def report(self) -> dict:
         """The JSON report: residuals per constraint and block, and timings."""
         s = self.stats
@@ -181,291 +144,76 @@ class Rollout:
 
 
 # ---------------------------------------------------------------------------------------
-# Score -> IK constraints, and the tracks each drives
+# Key postures and frames
 # ---------------------------------------------------------------------------------------
 
 
-class _Compiler:
-    """Translates score records into :mod:`azee_mj.ik` constraints on one signer."""
+@dataclasses.dataclass(frozen=True)
+class Active:
+    """A constraint active in a segment, and whether its block starts with the segment."""
 
-    def __init__(self, model: mujoco.MjModel, smap: SignerMap):
-        self.m, self.smap = model, smap
-        self.joint_track: dict[int, str] = {}
-        for track, joints in smap.tracks.items():
-            for j in joints:
-                self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
-
-    # expressions
-    def site(self, ref: sc.SiteRef) -> str:
-        return ref.model_site(self.smap)
-
-    def point(self, e) -> ik.Expr:
-        if isinstance(e, sc.PSite):
-            return ik.SitePos(self.site(e.ref))
-        if isinstance(e, sc.PLiteral):
-            return ik.Const(tuple(e.xyz))
-        if isinstance(e, sc.PTranslate):
-            return ik.Lin(((1.0, self.point(e.p)), (1.0, self.vector(e.v))))
-        if isinstance(e, sc.PMid):
-            return ik.Lin(((0.5, self.point(e.p)), (0.5, self.point(e.q))))
-        raise TypeError(e)
-
-    def vector(self, e) -> ik.Expr:
-        if isinstance(e, (sc.VAxis, sc.VLiteral)):
-            return ik.Const(tuple(e.xyz))
-        if isinstance(e, sc.VBoneAxis):
-            b = e.bone.bone_map(self.smap)
-            return ik.BodyAxis(b.body, b.dir if e.axis is sc.Axis.DIR else b.nrm)
-        if isinstance(e, sc.VOpp):
-            return ik.Lin(((-1.0, self.vector(e.v)),))
-        if isinstance(e, sc.VScale):
-            return ik.Lin(((e.k, self.vector(e.v)),))
-        if isinstance(e, sc.VAdd):
-            return ik.Lin(tuple((1.0, self.vector(t)) for t in e.terms))
-        if isinstance(e, sc.VCross):
-            return ik.Cross(self.vector(e.a), self.vector(e.b))
-        if isinstance(e, sc.VFrom):
-            return ik.Lin(((1.0, self.point(e.q)), (-1.0, self.point(e.p))))
-        if isinstance(e, sc.VUnit):
-            return ik.Unit(self.vector(e.v))
-        raise TypeError(e)
-
-    # constraints
-    def constraint(self, c, label: str):
-        """The IK constraint of a place / orient / look, or None for morph / trill."""
-        if isinstance(c, sc.Place):
-            return ik.Place(self.site(c.site), self.point(c.at), c.tol, label)
-        if isinstance(c, sc.Orient):
-            b = c.bone.bone_map(self.smap)
-            local = b.dir if c.axis is sc.Axis.DIR else b.nrm
-            return ik.Orient(b.body, local, ik.Rel(c.rel.value), self.vector(c.vector), c.tol,
-                             label)  # fmt: skip
-        if isinstance(c, sc.Look):
-            eyes = tuple((self.smap.bones[e].body, self.smap.bones[e].dir)
-                         for e in ("eye_L", "eye_R"))  # fmt: skip
-            return ik.Look(eyes, self.point(c.at), np.deg2rad(1.0), label)
-        return None
-
-    def morph_changes(self, c: sc.MorphC) -> dict[str, float]:
-        return {j: c.weight * v for j, v in self.smap.morphs[c.id].joint_changes(c.side).items()}
-
-    # tracks
-    def body_tracks(self, body: int, own_only: bool) -> set[str]:
-        """Tracks owning the joints of ``body`` (and, unless ``own_only``, its ancestors')."""
-        out: set[str] = set()
-        while body > 0:
-            for j in range(self.m.body_jntadr[body],
-                           self.m.body_jntadr[body] + self.m.body_jntnum[body]):  # fmt: skip
-                if j in self.joint_track:
-                    out.add(self.joint_track[j])
-            if own_only and out:
-                return out
-            body = int(self.m.body_parentid[body])
-        return out
-
-    def site_tracks(self, site: str) -> set[str]:
-        """A placed site moves its limb: the tracks above it, without hands (shaped by
-        morphs) and without the spine unless nothing else can move it."""
-        sid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, site)
-        tracks = self.body_tracks(int(self.m.site_bodyid[sid]), own_only=False)
-        limb = {t for t in tracks if not t.startswith(("hand", "spine"))}
-        return limb or tracks
-
-    def partner_sites(self, c) -> tuple[str, ...]:
-        """Model sites of the other part when placement ``c`` brings two parts together.
-
-        A placement at a bare body site is a contact: both parts move to meet. A placement
-        at a point that reads sites of an arm or hand (``@I_TIP(w)`` translated, the middle
-        of two fingertips) also moves that arm, since the point rides on it; a point that
-        reads only the head or trunk is a location that stays where the body holds it.
-        """
-        if not isinstance(c, sc.Place):
-            return ()
-        if isinstance(c.at, sc.PSite):
-            return () if c.at.ref.locus else (self.site(c.at.ref),)
-        own = self.site_tracks(self.site(c.site))
-        sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
-        return tuple(s for s in sites
-                     if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
-
-    def tracks_of(self, c) -> set[str]:
-        """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
-        if isinstance(c, sc.Place):
-            out = self.site_tracks(self.site(c.site))
-            for s in self.partner_sites(c):  # both parts move
-                out |= self.site_tracks(s)
-            return out
-        if isinstance(c, sc.Orient):
-            body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
-            return self.body_tracks(body, own_only=True)
-        if isinstance(c, sc.MorphC):
-            out = set()
-            for j in self.morph_changes(c):
-                out.add(self.joint_track[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, j)])
-            return out
-        if isinstance(c, sc.Look):
-            return {"eyes", "head"}
-        if isinstance(c, sc.Trill):
-            if c.site is not None:
-                return self.site_tracks(self.site(c.site))
-            body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
-            return self.body_tracks(body, own_only=True)
-        raise TypeError(c)
+    driven: DrivenConstraint
+    starts_now: bool
 
 
-# ---------------------------------------------------------------------------------------
-# Pass 1: segments and key postures
-# ---------------------------------------------------------------------------------------
+class Realizer:
+    """Key postures (pass 1), frames (pass 2, with :class:`~azee_mj.motion.Motion`) and
+    residual traces of ``score``; use :func:`realize`."""
 
-
-@dataclasses.dataclass
-class _Key:
-    """One track's posture over a segment, and the constraints that hold it there."""
-
-    start: float
-    end: float
-    q: np.ndarray  # (nq,) the component's solved posture (only this track's joints count)
-    cons: tuple  # ik constraints of the component (hard), for frames inside this key
-    free: tuple[str, ...]  # joints of the component
-
-
-def _minjerk(u: np.ndarray | float):
-    u = np.clip(u, 0.0, 1.0)
-    return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
-
-
-class _Realizer:
-    def __init__(self, score: sc.Score, solver: ik.Solver, fps: float, mode: Mode):
+    def __init__(self, score: sc.Score, solver: ik.Solver, fps: float, mode: Mode,
+                 signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
         self.score, self.solver, self.fps, self.mode = score, solver, fps, mode
-        self.m = solver.model
-        self.smap = solver.signer_map
-        self.comp = _Compiler(self.m, self.smap)
-        self.track_joints = {t: tuple(js) for t, js in self.smap.tracks.items()}
-        self.track_dofs = {
-            t: np.array([self.m.jnt_dofadr[solver.joint_id(j)] for j in js], int)
-            for t, js in self.track_joints.items()
-        }
-        self.home = solver.natural.copy()
-        self.blocks = [b for b in score.blocks()]
-        self.by_path = {b.path: b for b in self.blocks}
-        self.results: list[ik.IKResult] = []
+        self.sched = Schedule(score, solver, signer_map)
+        self.motion = Motion(self.sched, mode)
+        self.m, self.smap, self.comp = self.sched.m, self.sched.smap, self.sched.comp
+        self.track_joints, self.track_dofs = self.sched.track_joints, self.sched.track_dofs
+        self.home, self.blocks, self.by_path = self.sched.home, self.sched.blocks, self.sched.by_path
         self.n_key = 0
-        self.contacts = self._contact_windows()
-        self._moved_cache: dict = {}
-        self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
-                           for b in range(self.m.nbody)]  # fmt: skip
 
-    def _contact_windows(self) -> list[tuple[float, float, int, int]]:
-        """(start, end, body, body) of every contact constraint of the score."""
-        out = []
-        for b in self.blocks:
-            for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
-                partners = self.comp.partner_sites(c)
-                if partners:
-                    body = int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
-                for s in partners:
-                    other = int(self.m.site_bodyid[self.solver.site_id(s)])
-                    out.append((b.start, b.end, body, other))
-        return out
-
-    def _allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
-        """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
-        pairs = set()
-        for a, b, x, y in self.contacts:
-            if a - 1e-9 <= t < b:
-                pairs |= {(x, y), (y, x)}
-        return frozenset(pairs)
-
-    # -- helpers ---------------------------------------------------------------------------
-    def _solve(self, cons, free, q0, t: float) -> ik.IKResult:
-        names = self.body_names
-        touching = tuple((names[a], names[b]) for a, b in self._allowed_at(t) if a < b)
-        res = self.solver.solve(ik.IKProblem(tuple(cons), tuple(free), touching, q0), q0)
-        self.results.append(res)
-        return res
-
-    def _block_cons(self, b: sc.Block):
-        """(ik constraints, morph joint changes, tracks) per constraint of a cstr block."""
-        out = []
-        for c in b.constraints:
-            label = f"{b.path}#{c.index}"
-            tracks = self.comp.tracks_of(c)
-            if isinstance(c, sc.MorphC):
-                out.append((None, self.comp.morph_changes(c), tracks, c))
-            elif isinstance(c, sc.Trill):
-                out.append((None, {}, tracks, c))
-            else:
-                out.append((self.comp.constraint(c, label), {}, tracks, c))
-        return out
+    @property
+    def results(self) -> list[ik.IKResult]:
+        """Every IK result solved so far, in order."""
+        return self.motion.results
 
     def schedule(self) -> dict[str, tuple[TrackInterval, ...]]:
-        sched: dict[str, list[TrackInterval]] = {t: [] for t in self.track_joints}
-        for b in self.blocks:
-            if b.kind is sc.BlockKind.CSTR:
-                tracks = set().union(*(self.comp.tracks_of(c) for c in b.constraints))
-            elif b.kind is sc.BlockKind.HOLD:
-                tracks = self._held_tracks(b)
-            elif b.kind is sc.BlockKind.TRANSPATH:
-                tracks = self.comp.site_tracks(self.comp.site(b.transpath_site))
-            else:
-                continue
-            for t in tracks:
-                sched[t].append(TrackInterval(t, b.path, b.start, b.end))
-        return {t: tuple(sorted(v, key=lambda i: (i.start, i.end))) for t, v in sched.items()}
+        """Per track, the intervals blocks drive it."""
+        return self.sched.intervals()
 
-    def _held_tracks(self, hold: sc.Block) -> set[str]:
-        held = self.by_path[hold.hold_of]
-        out: set[str] = set()
-        for b in held.blocks():
-            if b.kind is sc.BlockKind.CSTR:
-                for c in b.constraints:
-                    if not isinstance(c, sc.Trill):
-                        out |= self.comp.tracks_of(c)
-            elif b.kind is sc.BlockKind.HOLD:
-                out |= self._held_tracks(b)
-        return out
-
-    def events(self) -> list[float]:
-        ts = {0.0, self.score.duration}
-        for b in self.blocks:
-            if b.kind in (sc.BlockKind.CSTR, sc.BlockKind.HOLD):
-                ts.update((b.start, b.end))
-        return sorted(t for t in ts if 0.0 <= t <= self.score.duration)
-
-    def key_postures(self) -> dict[str, list[_Key]]:
+    def key_postures(self) -> dict[str, list[Key]]:
         """Pass 1: solve each segment's components in time order."""
-        keys: dict[str, list[_Key]] = {t: [] for t in self.track_joints}
+        keys: dict[str, list[Key]] = {t: [] for t in self.track_joints}
         state = self.home.copy()  # the posture each track holds now
-        ev = self.events()
-        cstr = [(b, self._block_cons(b)) for b in self.blocks if b.kind is sc.BlockKind.CSTR]
+        ev = self.sched.events()
+        cstr = [(b, self.sched.block_constraints(b)) for b in self.blocks if b.kind is sc.BlockKind.CSTR]
         holds = [b for b in self.blocks if b.kind is sc.BlockKind.HOLD]
         for t0, t1 in zip(ev[:-1], ev[1:]):
-            items = []  # (ik constraint | None, morph changes, tracks, starts_now)
+            items: list[Active] = []
             for b, cons in cstr:
                 if b.start <= t0 < b.end:
-                    items += [(c, mch, tr, b.start == t0) for c, mch, tr, src in cons
-                              if not isinstance(src, sc.Trill)]  # fmt: skip
+                    items += [Active(dc, b.start == t0) for dc in cons
+                              if not isinstance(dc.source, sc.Trill)]  # fmt: skip
             held: set[str] = set()
             for h in holds:
                 if h.start <= t0 < h.end:
                     # Rule 4: the held block is realized (it ended before); keep its posture.
                     at = self.by_path[h.hold_of].end
-                    for t in self._held_tracks(h) - held:
+                    for t in self.sched.held_tracks(h) - held:
                         q = self._track_posture_at(keys[t], at).copy()
                         state[self.track_dofs[t]] = q[self.track_dofs[t]]
-                        keys[t].append(_Key(t0, t1, q, (), self.track_joints[t]))
+                        keys[t].append(Key(t0, t1, q, (), self.track_joints[t]))
                         held.add(t)
-            items = [it for it in items if not it[2] <= held]
+            items = [it for it in items if not it.driven.tracks <= held]
             if not items:
                 continue
             if self.mode is Mode.FLATTENED:
                 # One whole-body problem: every track but the face and eyes is free.
-                driven = set().union(*(tr for _, _, tr, _ in items))
+                driven = set().union(*(it.driven.tracks for it in items))
                 groups = [driven | (set(self.track_joints) - {"face", "eyes"})]
             else:
-                groups = _components([tr for _, _, tr, _ in items])
+                groups = _components([it.driven.tracks for it in items])
             # Hand shapes and face first: a placed fingertip depends on its hand's shape.
-            groups.sort(key=lambda g: any(it[0] is not None for it in items if it[2] & g))
+            groups.sort(key=lambda g: any(it.driven.con is not None for it in items
+                                          if it.driven.tracks & g))
             before = state.copy()
             solved = []
             for g in groups:
@@ -483,7 +231,7 @@ class _Realizer:
                 for t in group:
                     d = self.track_dofs[t]
                     state[d] = res.qpos[d]
-                    keys[t].append(_Key(t0, t1, res.qpos.copy(), tuple(cons), free))
+                    keys[t].append(Key(t0, t1, res.qpos.copy(), tuple(cons), free))
         return keys
 
     def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float):
@@ -491,12 +239,12 @@ class _Realizer:
         placements first when a block starts with both). When the constraints are some of
         those that held the group until now (blocks only ended), nothing needs to move and
         the posture is kept. Returns (result, cons, free)."""
-        mine = [it for it in items if it[2] & group]
+        mine = [it for it in items if it.driven.tracks & group]
         cons, targets = [], {}
-        for c, mch, _, _ in mine:
-            if c is not None:
-                cons.append(c)
-            for j, v in mch.items():
+        for it in mine:
+            if it.driven.con is not None:
+                cons.append(it.driven.con)
+            for j, v in it.driven.morph.items():
                 targets[j] = targets.get(j, 0.0) + v
         cons += self._joint_targets(targets)
         free = tuple(j for t in sorted(group) for j in self.track_joints[t])
@@ -505,11 +253,11 @@ class _Realizer:
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
             return kept, cons, free
         q0 = state.copy()
-        places = [c for c in cons if not isinstance(c, (ik.Orient, ik.Look))]
-        if len(places) < len(cons) and any(it[3] for it in mine) and places:
-            q0 = self._solve(places, free, q0, t0).qpos
+        places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
+        if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
+            q0 = self.motion.solve(places, free, q0, t0).qpos
             self.n_key += 1
-        res = self._solve(cons, free, q0, t0)
+        res = self.motion.solve(cons, free, q0, t0)
         self.n_key += 1
         return res, cons, free
 
@@ -519,15 +267,15 @@ class _Realizer:
             jid = self.solver.joint_id(j)
             lo, hi = self.m.jnt_range[jid]
             val = float(np.clip(self.m.qpos0[self.m.jnt_qposadr[jid]] + v, lo, hi))
-            out.append(ik.JointTarget(j, val, tol, f"morph:{j}"))
+            out.append(cn.JointTarget(j, val, tol, f"morph:{j}"))
         return out
 
-    def _track_posture_at(self, tkeys: list[_Key], t: float) -> np.ndarray:
+    def _track_posture_at(self, tkeys: list[Key], t: float) -> np.ndarray:
         before = [k for k in tkeys if k.start < t - 1e-9]
         return (before[-1].q if before else self.home)
 
-    # -- pass 2: frames ------------------------------------------------------------------
-    def frames(self, keys: dict[str, list[_Key]]) -> np.ndarray:
+    # -- pass 2: frames ---------------------------------------------------------------
+    def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
         T = int(np.floor(self.score.duration * self.fps + 1e-9)) + 1
         times = np.arange(T) / self.fps
         q = np.tile(self.home, (T, 1))
@@ -535,204 +283,16 @@ class _Realizer:
         names = list(self.track_joints)
         for ti, t in enumerate(names):
             d = self.track_dofs[t]
-            q[:, d], moving[:, ti] = self._track_curve(keys[t], times, d, self._carried(t, keys))
+            q[:, d], moving[:, ti] = self.motion.track_curve(keys[t], times, d, self._carried(t, keys))
         if self.mode is Mode.FLATTENED:
-            return self._flat_transpaths(q, times)
-        return self._constrained_blends(q, times, moving, names, keys)
+            return self.motion.flat_transpaths(q, times)
+        return self.motion.constrained_blends(q, times, moving, names, keys)
 
-    def _carried(self, track: str, keys: dict[str, list[_Key]]) -> list[float]:
+    def _carried(self, track: str, keys: dict[str, list[Key]]) -> list[float]:
         """End times [s] of other tracks' keys with a constraint that names a body this
         track moves (a hand held in front of the chin is carried by the head track)."""
         return sorted(k.end for t, tk in keys.items() if t != track for k in tk
-                      if any(track in self._moved_by(c) for c in k.cons))  # fmt: skip
-
-    def _track_curve(self, tkeys: list[_Key], times: np.ndarray, dofs: np.ndarray,
-                     carried: list[float] = ()):  # fmt: skip
-        """Joint values (T, len(dofs)) of one track and a (T,) flag where it blends. A blend
-        starts no earlier than the end of a key of another track that this track carries
-        (``carried``, end times), so that it does not move a target while it is held."""
-        out = np.tile(self.home[dofs], (len(times), 1))
-        blend = np.zeros(len(times), bool)
-        if not tkeys:
-            return out, blend
-        # Merge consecutive keys with the same posture into holds.
-        holds: list[list] = []
-        for k in tkeys:
-            qk = k.q[dofs]
-            if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
-                holds[-1][1] = k.end
-            else:
-                holds.append([k.start, k.end, qk])
-        prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
-        first = True
-        for a, b, qk in holds:
-            if self.mode is Mode.FLATTENED:
-                w0, w1 = (a, a) if first else (prev_end, a)
-            else:
-                gap = a - prev_end
-                need = max(MIN_BLEND, 1.875 * float(np.max(np.abs(qk - prev_q))) / BLEND_SPEED)
-                if first and a <= 1e-9:
-                    w0 = w1 = a
-                elif gap >= 1e-9:
-                    w0, w1 = max(prev_end, a - max(min(gap, MAX_BLEND), min(need, gap))), a
-                    if first:
-                        w0 = max(0.0, a - max(min(a, MAX_BLEND), need))
-                else:  # no gap: blend at the end of the previous hold
-                    w0, w1 = max(prev_start, a - need), a
-                pins = [e for e in carried if e < w1 + 1e-9]
-                if pins:  # never shorter than MIN_BLEND: a carried hold may end as this starts
-                    w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
-            sel = (times >= w0) & (times < w1)
-            if w1 > w0:
-                u = _minjerk((times[sel] - w0) / (w1 - w0))[:, None]
-                out[sel] = prev_q + u * (qk - prev_q)
-                blend[sel] = True
-            out[(times >= w1)] = qk
-            prev_q, prev_end, prev_start, first = qk, b, a, False
-        return out, blend
-
-    def _constrained_blends(self, q, times, moving, names, keys):
-        """Frames where a blending track still has constraints become IK problems."""
-        tp = [b for b in self.blocks if b.kind is sc.BlockKind.TRANSPATH]
-        paths = {b.path: self._transpath_points(b, q, times) for b in tp}
-        sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
-        limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
-        prev = None
-        for f, t in enumerate(times):
-            tracks = {names[i] for i in np.flatnonzero(moving[f])}
-            cons, free = [], set()
-            for tr in tracks:
-                # While blending toward the next posture, keep what both postures keep.
-                key = next((k for k in keys[tr] if k.start <= t < k.end), None)
-                nxt = next((k for k in keys[tr] if k.start > t), None)
-                if key is not None:
-                    keep = [c for c in key.cons if nxt is None or c in nxt.cons]
-                    cons += [c for c in keep if c not in cons]
-                    free |= set(key.free)
-            for b in tp:
-                if b.start <= t < b.end and limbs[b.path] & tracks:
-                    cons.append(ik.Place(sites[b.path], ik.Const(tuple(paths[b.path][f])), 1e-3,
-                                         f"{b.path}@path"))  # fmt: skip
-                    free |= {j for tr in limbs[b.path] for j in self.track_joints[tr]}
-            if not cons:
-                if tracks and self._penetrates(q[f], t):
-                    # A blend that would pass through the body: push it out, staying close.
-                    free = {j for tr in tracks for j in self.track_joints[tr]}
-                    soft = self._soft_targets(q[f], free)
-                    q[f] = prev = self._solve(soft, sorted(free), q[f], t).qpos
-                continue
-            free |= {j for tr in tracks for j in self.track_joints[tr]}
-            soft = self._soft_targets(q[f], free)
-            q0 = q[f].copy()
-            if prev is not None:
-                dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
-                q0[dofs] = prev[dofs]
-            res = self._solve(cons + soft, sorted(free), q0, t)
-            q[f] = res.qpos
-            prev = res.qpos
-        return q
-
-    def _moved_by(self, c) -> set[str]:
-        """Tracks whose joints move a body that IK constraint ``c`` names."""
-        if c not in self._moved_cache:
-            bodies = self.solver._bodies_of(c)
-            self._moved_cache[c] = set().union(
-                *(self.comp.body_tracks(b, own_only=False) for b in bodies))
-        return self._moved_cache[c]
-
-    def _soft_targets(self, qf: np.ndarray, joints) -> list[ik.JointTarget]:
-        adr = self.m.jnt_qposadr
-        return [ik.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
-                for j in sorted(joints)]  # fmt: skip
-
-    def _penetrates(self, qf: np.ndarray, t: float) -> bool:
-        d = self.solver.data
-        d.qpos[:] = qf
-        return ik.penetration_depth(self.m, d, self._allowed_at(t)) > ik.PENETRATION_LIMIT
-
-    def _transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:
-        """(T, 3) path points of a transpath for every frame (valid inside its interval)."""
-        site = self.comp.site(b.transpath_site)
-        sid = self.solver.site_id(site)
-        d = self.solver.data
-        fs = min(int(np.searchsorted(times, b.start - 1e-9)), len(times) - 1)
-        fe = min(int(np.searchsorted(times, b.end - 1e-9)), len(times) - 1)
-        ends = []
-        for f in (fs, fe):
-            d.qpos[:] = q[f]
-            mujoco.mj_kinematics(self.m, d)
-            ends.append(d.site_xpos[sid].copy())
-        x0, x1 = ends
-        u = _minjerk((times - b.start) / b.duration)
-        return _path_points(b.route, x0, x1, u, self, q[fs])
-
-    def _flat_transpaths(self, q, times):
-        """Flattened mode: a transpath adds keyframes along its path (the 2018 method)."""
-        for b in (b for b in self.blocks if b.kind is sc.BlockKind.TRANSPATH):
-            pts = self._transpath_points(b, q, times)
-            sel = np.flatnonzero((times >= b.start) & (times < b.end))
-            if not sel.size:
-                continue
-            site = self.comp.site(b.transpath_site)
-            kf = sel[np.linspace(0, sel.size - 1, min(6, sel.size)).round().astype(int)]
-            free = tuple(j for t in self.track_joints for j in self.track_joints[t]
-                         if t not in ("face", "eyes"))  # fmt: skip
-            kq = {}
-            for f in kf:
-                soft = self._soft_targets(q[f], free)
-                cons = [ik.Place(site, ik.Const(tuple(pts[f])), 1e-3, f"{b.path}@path")]
-                kq[f] = self._solve(cons + soft, free, q[f], times[f]).qpos
-            # Whole-body blend between consecutive transpath keyframes.
-            fr = sorted(kq)
-            for f0, f1 in zip(fr[:-1], fr[1:]):
-                for f in range(f0, f1):
-                    u = _minjerk((f - f0) / (f1 - f0))
-                    q[f] = kq[f0] + u * (kq[f1] - kq[f0])
-            q[fr[-1]] = kq[fr[-1]]
-        return q
-
-    # -- pass 3: trills ----------------------------------------------------------------
-    def trills(self, q: np.ndarray, times: np.ndarray) -> np.ndarray:
-        d = self.solver.data
-        m = self.m
-        jac = np.empty((3, m.nv))
-        for b in self.blocks:
-            if b.kind is not sc.BlockKind.CSTR:
-                continue
-            for c in b.constraints:
-                if not isinstance(c, sc.Trill):
-                    continue
-                dofs = np.concatenate([self.track_dofs[t] for t in sorted(self.comp.tracks_of(c))])
-                sel = np.flatnonzero((times >= b.start) & (times < b.end))
-                ramp = np.minimum(1.0, np.minimum(times[sel] - b.start, b.end - times[sel]) / 0.05)
-                for f, env in zip(sel, ramp):
-                    d.qpos[:] = q[f]
-                    mujoco.mj_kinematics(m, d)
-                    mujoco.mj_comPos(m, d)
-                    v = sc.eval_vector(c.vector, self._site_pos, self._bone_axis)
-                    v = v / np.linalg.norm(v)
-                    a = c.amplitude * env * np.sin(2 * np.pi * c.frequency * (times[f] - b.start))
-                    if c.site is not None:
-                        mujoco.mj_jacSite(m, d, jac, None, self.solver.site_id(self.comp.site(c.site)))
-                    else:
-                        mujoco.mj_jacBody(m, d, None, jac, self.solver.body_id(c.bone.model_body(self.smap)))
-                    J = jac[:, dofs]
-                    dq = J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), a * v)
-                    q[f, dofs] = np.clip(q[f, dofs] + dq, self.solver.lower[dofs],
-                                         self.solver.upper[dofs])  # fmt: skip
-                    if self._penetrates(q[f], times[f]):  # the shake must not go through
-                        joints = {j for t in self.comp.tracks_of(c) for j in self.track_joints[t]}
-                        q[f] = self._solve(self._soft_targets(q[f], joints), sorted(joints), q[f],
-                                           times[f]).qpos  # fmt: skip
-        return q
-
-    def _site_pos(self, ref: sc.SiteRef) -> np.ndarray:
-        return self.solver.data.site_xpos[self.solver.site_id(self.comp.site(ref))].copy()
-
-    def _bone_axis(self, bone: sc.BoneRef, axis: sc.Axis) -> np.ndarray:
-        b = bone.bone_map(self.smap)
-        R = self.solver.data.xmat[self.solver.body_id(b.body)].reshape(3, 3)
-        return R @ np.asarray(b.dir if axis is sc.Axis.DIR else b.nrm)
+                      if any(track in self.sched.moved_by(c) for c in k.cons))  # fmt: skip
 
     # -- residuals ---------------------------------------------------------------------
     def traces(self, q: np.ndarray, times: np.ndarray) -> tuple[ConstraintTrace, ...]:
@@ -749,8 +309,8 @@ class _Realizer:
                 for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end - 1e-9)):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
-                    vals[f] = ic.residual(ik._Kin(self.solver))
-                unit = "m" if isinstance(ic, ik.Place) else "rad"
+                    vals[f] = ic.residual(self.solver.kinematics())
+                unit = "m" if isinstance(ic, cn.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
                                            unit, b.start, b.end, vals))  # fmt: skip
         return tuple(out)
@@ -774,73 +334,9 @@ def _components(track_sets: list[set[str]]) -> list[set[str]]:
     return groups
 
 
-def _path_points(route, x0, x1, u, realizer: _Realizer, q_start) -> np.ndarray:
-    """Points (len(u), 3) of a transpath route from ``x0`` to ``x1`` at parameters ``u``."""
-    u = np.asarray(u)[:, None]
-    if isinstance(route, sc.Straight):
-        return x0 + u * (x1 - x0)
-    d = realizer.solver.data
-    d.qpos[:] = q_start
-    mujoco.mj_kinematics(realizer.m, d)
-    if isinstance(route, sc.Arc):
-        bulge = sc.eval_vector(route.bulge, realizer._site_pos, realizer._bone_axis)
-        mid = 0.5 * (x0 + x1) + bulge
-        return _arc_through(x0, mid, x1, u[:, 0])
-    if isinstance(route, sc.Circle):
-        c = sc.eval_point(route.center, realizer._site_pos, realizer._bone_axis)
-        r0, r1 = x0 - c, x1 - c
-        if route.normal is not None:
-            n = sc.eval_vector(route.normal, realizer._site_pos, realizer._bone_axis)
-        else:
-            n = np.cross(r0, r1)
-        n = n / max(np.linalg.norm(n), 1e-12)
-        e1 = r0 - n * (r0 @ n)
-        e2 = np.cross(n, e1)
-        rad0 = np.linalg.norm(e1)
-        e1, e2 = e1 / rad0, e2 / np.linalg.norm(e2)
-        p1 = r1 - n * (r1 @ n)
-        end_angle = np.arctan2(p1 @ e2, p1 @ e1) % (2 * np.pi)
-        total = 2 * np.pi * route.turns + (end_angle if np.linalg.norm(p1) > 1e-9 else 0.0)
-        if end_angle < 1e-6:
-            total = 2 * np.pi * route.turns
-        ang = u[:, 0] * total
-        rad = rad0 + u[:, 0] * (np.linalg.norm(p1) - rad0)
-        h = (r0 @ n) + u[:, 0] * ((r1 @ n) - (r0 @ n))
-        return c + rad[:, None] * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2) + h[:, None] * n
-    raise TypeError(route)
-
-
-def _arc_through(a, b, c, u) -> np.ndarray:
-    """Points of the circular arc from ``a`` through ``b`` to ``c`` at fractions ``u``."""
-    ab, ac = b - a, c - a
-    n = np.cross(ab, ac)
-    if np.linalg.norm(n) < 1e-12:
-        return a + u[:, None] * (c - a)
-    # Circumcentre of the triangle.
-    cc = a + (np.cross(n, ab) * (ac @ ac) + np.cross(ac, n) * (ab @ ab)) / (2 * (n @ n))
-    n = n / np.linalg.norm(n)
-    e1 = (a - cc) / np.linalg.norm(a - cc)
-    e2 = np.cross(n, e1)
-    r = np.linalg.norm(a - cc)
-
-    def ang(p):
-        v = p - cc
-        return np.arctan2(v @ e2, v @ e1) % (2 * np.pi)
-
-    total = ang(c)  # a is at angle 0; going through b in the +n sense reaches c at ang(c)
-    return cc + r * (np.cos(u * total)[:, None] * e1 + np.sin(u * total)[:, None] * e2)
-
-
 # ---------------------------------------------------------------------------------------
 # Public API
 # ---------------------------------------------------------------------------------------
-
-
-def constraint_tracks(c, model: mujoco.MjModel | None = None, signer_map: SignerMap = DEFAULT_MAP):
-    """The tracks a score constraint drives (a contact drives both sides it joins)."""
-    from azee_mj.model import load_model
-
-    return _Compiler(model or load_model(), signer_map).tracks_of(c)
 
 
 def realize(
@@ -849,6 +345,7 @@ def realize(
     fps: float = 50.0,
     mode: Mode | str = Mode.MULTITRACK,
     solver: ik.Solver | None = None,
+    signer_map: SignerMap | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> Rollout:
     """Realize a score: the motion of the signer, frame ``k`` at ``k / fps`` [s].
@@ -857,7 +354,9 @@ def realize(
       score: a loaded :class:`~azee_mj.score.Score`, a path or a parsed JSON object.
       fps: frames per second.
       mode: ``multitrack`` (default) or ``flattened`` (the 2018 method, for comparison).
-      solver: an :class:`~azee_mj.ik.Solver` to reuse (compiling one takes ~0.1 s).
+      solver: an :class:`~azee_mj.ik.Solver` to reuse (compiling one takes ~0.1 s; default
+        :func:`~azee_mj.schedule.make_solver` for ``signer_map``).
+      signer_map: the AZee names of the solver's signer (default: the bundled signer's).
       progress: called with the fraction done (0..1).
 
     Returns:
@@ -869,8 +368,9 @@ def realize(
     mode = Mode(mode) if isinstance(mode, str) else mode
     if fps <= 0:
         raise ValueError(f"fps must be positive, got {fps}")
-    solver = solver or ik.Solver()
-    r = _Realizer(score, solver, fps, mode)
+    smap = signer_map or DEFAULT_MAP
+    solver = solver or make_solver(signer_map=smap)
+    r = Realizer(score, solver, fps, mode, smap)
     tick = progress or (lambda f: None)
     keys = r.key_postures()
     tick(0.4)
@@ -879,9 +379,9 @@ def realize(
     times = np.arange(q.shape[0]) / fps
     # Residuals are those of the postures the blocks ask for: a trill is added on top.
     traces = r.traces(q, times)
-    q = r.trills(q, times)
-    site_names = tuple(solver.signer_map.sites)
-    sids = np.array([solver.site_id(s) for s in solver.signer_map.sites.values()])
+    q = r.motion.trills(q, times)
+    site_names = tuple(smap.sites)
+    sids = np.array([solver.site_id(s) for s in smap.sites.values()])
     d = solver.data
     site_pos = np.empty((len(times), len(sids), 3))
     for f in range(len(times)):
@@ -899,45 +399,24 @@ def realize(
     return Rollout(fps, mode, times, q, site_names, site_pos, r.schedule(), traces, stats)
 
 
-def schedule(score: sc.Score | str, solver: ik.Solver | None = None
-             ) -> dict[str, tuple[TrackInterval, ...]]:
-    """Per track, the intervals blocks drive it, without solving anything."""
-    if not isinstance(score, sc.Score):
-        score = sc.load_score(score)
-    return _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK).schedule()
-
-
-def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
-                  solver: ik.Solver | None = None) -> dict[int, frozenset[tuple[str, str]]]:
-    """Frame -> body-name pairs that a contact constraint active then brings together."""
-    if not isinstance(score, sc.Score):
-        score = sc.load_score(score)
-    r = _Realizer(score, solver or ik.Solver(), 1.0, Mode.MULTITRACK)
-    out: dict[int, set[tuple[str, str]]] = {}
-    for start, end, x, y in r.contacts:
-        for f in np.flatnonzero((times >= start - 1e-9) & (times < end)):
-            out.setdefault(int(f), set()).add((r.body_names[x], r.body_names[y]))
-    return {f: frozenset(v) for f, v in out.items()}
-
-
 def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
                  solver: ik.Solver | None = None) -> tuple[ConstraintTrace, ...]:
     """Residual traces of ``score``'s constraints on given frames ``qpos`` (T, nq)."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
-    r = _Realizer(score, solver or ik.Solver(), fps, Mode.MULTITRACK)
+    r = Realizer(score, solver or make_solver(), fps, Mode.MULTITRACK)
     return r.traces(np.asarray(qpos, float), np.arange(len(qpos)) / fps)
 
 
-def residual_summary(score: sc.Score | str, arrays: Mapping[str, np.ndarray],
+def residual_summary(score: sc.Score | str, rollout: Rollout,
                      solver: ik.Solver | None = None) -> tuple[str, bool]:
-    """A readable residual summary of a rollout's arrays against ``score``, and whether
+    """A readable residual summary of a rollout's postures against ``score``, and whether
     every constraint is within its tolerance."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     # A trill moves its block's posture on purpose: its block's residuals are not checked.
     trilled = {b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)}
-    traces = [t for t in score_traces(score, arrays["qpos"], float(arrays["fps"]), solver)
+    traces = [t for t in score_traces(score, rollout.qpos, rollout.fps, solver)
               if t.block not in trilled]  # fmt: skip
     bad = [t for t in traces if not t.ok]
     lines = [f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"

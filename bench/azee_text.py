@@ -21,7 +21,7 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from azee_mj import ik, timeline
+from azee_mj import schedule, timeline
 from azee_mj.azee import Lexicon, compile_text
 from azee_mj.score import load_score
 
@@ -58,7 +58,7 @@ def main() -> int:
         cold.append(time.perf_counter() - t0)
     loaded = load_score(score)
     t0 = time.perf_counter()
-    r = timeline.realize(loaded, fps=50, solver=ik.Solver())
+    r = timeline.realize(loaded, fps=50, solver=schedule.make_solver())
     realize_s = time.perf_counter() - t0
     ok = sum(t.ok for t in r.traces)
     bad = [t.describe() for t in r.traces if not t.ok]

@@ -39,7 +39,11 @@ import time
 import mujoco
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj import ik
+from azee_mj import kinematics as kin
+from azee_mj.kinematics import skew
+from azee_mj.schedule import make_solver
 
 MINK_MAX_ITER = 200
 #: The QP's step is dq = v * dt; dt only scales the limits' velocity bounds. The loop is
@@ -72,7 +76,7 @@ def _import_mink():
 def _world_perp_row(model, data, bid, local, v, jr):
     mujoco.mj_jacBody(model, data, None, jr, bid)
     a = data.xmat[bid].reshape(3, 3) @ local
-    da = -ik._skew(a) @ jr  # da/dq = -[a]x J_rot
+    da = -skew(a) @ jr  # da/dq = -[a]x J_rot
     return float(a @ v), v @ da
 
 
@@ -147,23 +151,23 @@ class MinkSolver:
         mink, s = self.mink, self.s
         out = []
         for c in problem.constraints:
-            if isinstance(c, ik.Place) and isinstance(c.target, ik.Const):
+            if isinstance(c, cn.Place) and isinstance(c.target, kin.Const):
                 t = mink.FrameTask(c.site, "site", position_cost=1.0 / c.tol, orientation_cost=0.0)
                 t.set_target(mink.SE3.from_translation(np.asarray(c.target.value, float)))
                 out.append(t)
-            elif isinstance(c, ik.Place) and isinstance(c.target, ik.SitePos):
+            elif isinstance(c, cn.Place) and isinstance(c.target, kin.SitePos):
                 t = mink.RelativeFrameTask(c.site, "site", c.target.site, "site",
                                            position_cost=1.0 / c.tol, orientation_cost=0.0)  # fmt: skip
                 t.set_target(mink.SE3.identity())
                 out.append(t)
-            elif isinstance(c, ik.Orient) and isinstance(c.vector, ik.Const):
+            elif isinstance(c, cn.Orient) and isinstance(c.vector, kin.Const):
                 v = np.asarray(c.vector.value, float)
                 v = v / np.linalg.norm(v)
-                if c.rel is ik.Rel.PERP:
+                if c.rel is cn.Rel.PERP:
                     out.append(self.PerpTask(s.body_id(c.body), c.local, v, 1.0 / c.tol))
                 else:
                     t = mink.AxisAlignTask(c.body, "body", axis=c.local, cost=1.0 / c.tol)
-                    t.set_target(-v if c.rel is ik.Rel.OPP else v)
+                    t.set_target(-v if c.rel is cn.Rel.OPP else v)
                     out.append(t)
             else:
                 raise NotImplementedError(f"no mink form for {c!r}")
@@ -174,11 +178,11 @@ class MinkSolver:
         mink, s, m = self.mink, self.s, self.model
         free = s.free_dofs(problem)
         frozen = np.setdiff1d(np.arange(m.nv), free)
-        joined = frozenset(s._joined_bodies(problem))
+        joined = frozenset(s.joined_bodies(problem))
         tasks = self.tasks(problem)
         limits = [self.config_limit, self.step_limit, self._collision_limit(joined)]
         constraints = [mink.DofFreezingTask(m, [int(i) for i in frozen])] if frozen.size else []
-        plan = s._plan(problem)
+        plan = s.plan(problem)
         cfg = self.config
         cfg.update(np.clip(q0, s.lower, s.upper))
         it = 0
@@ -198,19 +202,19 @@ class MinkSolver:
 def _within(plan, data) -> bool:
     """Every constraint within its tolerance on the posture in ``data`` (kinematics done)."""
     for c in plan.cons:
-        if isinstance(c, ik.Place):
+        if isinstance(c, cn.Place):
             p = data.site_xpos[plan.s.site_id(c.site)]
-            t = (np.asarray(c.target.value) if isinstance(c.target, ik.Const)
+            t = (np.asarray(c.target.value) if isinstance(c.target, kin.Const)
                  else data.site_xpos[plan.s.site_id(c.target.site)])  # fmt: skip
             if np.linalg.norm(p - t) > c.tol:
                 return False
-        elif isinstance(c, ik.Orient):
+        elif isinstance(c, cn.Orient):
             bid = plan.s.body_id(c.body)
             a = data.xmat[bid].reshape(3, 3) @ np.asarray(c.local, float)
             v = np.asarray(c.vector.value, float)
-            v = v / np.linalg.norm(v) * (-1.0 if c.rel is ik.Rel.OPP else 1.0)
+            v = v / np.linalg.norm(v) * (-1.0 if c.rel is cn.Rel.OPP else 1.0)
             dot = float(np.clip(a @ v, -1.0, 1.0))
-            err = abs(np.arcsin(dot)) if c.rel is ik.Rel.PERP else np.arccos(dot)
+            err = abs(np.arcsin(dot)) if c.rel is cn.Rel.PERP else np.arccos(dot)
             if err > c.tol:
                 return False
     return True
@@ -220,7 +224,7 @@ class SimStepper:
     """Simulation stepping with mocap ``connect`` equalities until still."""
 
     def __init__(self, sim_time: float = SIM_TIME, still: float = QVEL_STILL):
-        self.s = ik.Solver()  # own copy of the model: configure_equalities writes into it
+        self.s = make_solver()  # own copy of the model: configure_equalities writes into it
         m = self.s.model
         m.opt.gravity[:] = 0.0
         m.geom_margin[:] = 0.0  # MuJoCo's default (the solver's own copy detects at 4 mm)

@@ -42,6 +42,7 @@ import baselines  # noqa: E402
 import problems  # noqa: E402
 
 from azee_mj import ik  # noqa: E402
+from azee_mj.schedule import make_solver  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 DEG = np.pi / 180.0
@@ -89,7 +90,7 @@ def _git() -> str:
 
 def score(solver: ik.Solver, kf, q: np.ndarray, t: float, iters: int) -> dict:
     """Every method's posture, scored by the same evaluator."""
-    res, depth = solver._plan(kf.problem).report(q)
+    res, depth = solver.plan(kf.problem).report(q)
     place = [r.value for r in res if r.unit == "m"]
     angle = [r.value for r in res if r.unit == "rad"]
     lo, hi = solver.lower, solver.upper
@@ -229,12 +230,12 @@ def main(argv=None) -> int:
 
     if args.regenerate or not problems.DATA.exists():
         t0 = time.perf_counter()
-        kfs = problems.make_keyframes(args.n, seed=args.seed, solver=ik.Solver(), sequence=True)
+        kfs = problems.make_keyframes(args.n, seed=args.seed, solver=make_solver(), sequence=True)
         problems.save_keyframes(kfs, n=args.n, seed=args.seed, sequence=True,
                                 made_with=f"azee_mj solver, git {_git()}")  # fmt: skip
         print(f"{args.n} keyframes made in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     kfs = problems.load_keyframes()[:n]
-    solver = ik.Solver()
+    solver = make_solver()
 
     records, summary, extra, extra_counts = {}, {}, {}, {}
     for name in methods:

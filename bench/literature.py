@@ -1,7 +1,7 @@
 """Literature signs (issue 6): realize the bundled examples beside the published figures.
 
-    /work/venv/bin/python bench/literature.py            # writes bench/results/literature.json
-    /work/venv/bin/python bench/literature.py --markdown # also prints the docs table
+    python bench/literature.py            # writes bench/results/literature.json
+    python bench/literature.py --markdown # also prints the docs table
 
 Every example is realized in both modes (``multitrack`` and ``flattened``) at 50 fps with
 one shared :class:`azee_mj.ik.Solver`, and reported with: postures solved
@@ -15,7 +15,7 @@ Published figures (Blender iTaSC, 1 cm / 5 degree thresholds): Nunnari, Filhol &
 (i7-3635QM, one core): tree 11 IK problems in 2.76 s; the two-sign sentence 152 IK problems
 in 9.97 s (the sentence is 'the cinema is/was good', sec. 5.2: our info-about example). The later Blender version's timings (arbre 0.63 s, bien 1.03 s, armoire 8.6 s)
 are the figures quoted in issue 6 for Sharma & Filhol 2022; they are not in the extracted
-text of that paper in /work/shared/reference.
+text of that paper.
 """
 
 from __future__ import annotations
@@ -30,11 +30,12 @@ import time
 import mujoco
 import numpy as np
 
-from azee_mj import ik
 from azee_mj.check import check_poses
 from azee_mj.model import load_model
+from azee_mj.schedule import contact_pairs, make_solver
 from azee_mj.score import load_score
-from azee_mj.timeline import contact_pairs, realize
+from azee_mj.sites import DEFAULT_MAP
+from azee_mj.timeline import realize
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
@@ -71,7 +72,7 @@ def undriven_motion(rollout, schedule, solver) -> float:
     """Total joint path length [rad] of the tracks with no interval in ``schedule``."""
     m = solver.model
     total = 0.0
-    for track, joints in solver.signer_map.tracks.items():
+    for track, joints in DEFAULT_MAP.tracks.items():
         if schedule.get(track):
             continue
         adr = [m.jnt_qposadr[solver.joint_id(j)] for j in joints
@@ -117,7 +118,7 @@ def main(argv=None) -> int:
     ap.add_argument("--markdown", action="store_true", help="print the markdown table")
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args(argv)
-    solver, model = ik.Solver(), load_model()
+    solver, model = make_solver(), load_model()
     names = sorted(p.stem for p in EXAMPLES.glob("*.json"))
     # Warm-up (imports, first compile of the row plans) outside the timings.
     realize(str(EXAMPLES / "bien.json"), fps=10, solver=solver)

@@ -23,7 +23,10 @@ import pathlib
 import mujoco
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj import ik
+from azee_mj import kinematics as kin
+from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
 ARM = ("clav_{X}_elev", "clav_{X}_prot", "arm_{X}_flex", "arm_{X}_abd", "arm_{X}_rot",
@@ -75,7 +78,7 @@ def random_posture(solver: ik.Solver, rng: np.random.Generator) -> np.ndarray:
         q = solver.natural.copy()
         q[adr] = rng.uniform(lo, hi)
         d.qpos[:] = q
-        if ik.penetration_depth(m, d) <= 0.0:
+        if cn.penetration_depth(m, d) <= 0.0:
             return q
 
 
@@ -90,7 +93,7 @@ def next_posture(solver: ik.Solver, q: np.ndarray, rng: np.random.Generator,
         out = q.copy()
         out[adr] = np.clip(q[adr] + rng.uniform(-step, step, adr.size), lo, hi)
         d.qpos[:] = out
-        if ik.penetration_depth(m, d) <= 0.0:
+        if cn.penetration_depth(m, d) <= 0.0:
             return out
 
 
@@ -109,7 +112,7 @@ def _read_off(solver, q, rng, n_place, n_orient, with_perp=True):
     for i in range(n_place):
         side = sides[i % 2]
         site = rng.choice(HAND_SITES).format(X=side)
-        cons.append(ik.Place(site, ik.Const(tuple(d.site_xpos[solver.site_id(site)])),
+        cons.append(cn.Place(site, kin.Const(tuple(d.site_xpos[solver.site_id(site)])),
                              label=f"place {site}"))
     bones = ["palm_{X}", "f_arm_{X}", "index_{X}_3", "arm_{X}"]
     for i in range(n_orient):
@@ -121,13 +124,13 @@ def _read_off(solver, q, rng, n_place, n_orient, with_perp=True):
         if with_perp and i % 3 == 2:
             v = np.cross(a, rng.normal(size=3))
             v /= np.linalg.norm(v)
-            cons.append(ik.Orient(bone.body, axis, ik.Rel.PERP, ik.Const(tuple(v)),
+            cons.append(cn.Orient(bone.body, axis, cn.Rel.PERP, kin.Const(tuple(v)),
                                   label=f"perp {bone.body}"))
         elif rng.random() < 0.5:
-            cons.append(ik.Orient(bone.body, axis, ik.Rel.ALONG, ik.Const(tuple(a)),
+            cons.append(cn.Orient(bone.body, axis, cn.Rel.ALONG, kin.Const(tuple(a)),
                                   label=f"along {bone.body}"))
         else:
-            cons.append(ik.Orient(bone.body, axis, ik.Rel.OPP, ik.Const(tuple(-a)),
+            cons.append(cn.Orient(bone.body, axis, cn.Rel.OPP, kin.Const(tuple(-a)),
                                   label=f"opp {bone.body}"))
     return cons
 
@@ -139,7 +142,7 @@ def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None,
     With ``sequence`` (the default) each truth posture is a bounded random change of the
     previous one (see :func:`next_posture`); otherwise each is an independent random posture.
     """
-    solver = solver or ik.Solver()
+    solver = solver or make_solver()
     rng = np.random.default_rng(seed)
     out: list[Keyframe] = []
     free = _joints()
@@ -156,7 +159,7 @@ def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None,
                 b = rng.choice(OTHER_HAND).format(X="L")
             else:
                 b = rng.choice(FACE_SITES).format(X=rng.choice(["R", "L"]))
-            contact = [ik.Place(a, ik.SitePos(b), label=f"contact {a}-{b}")]
+            contact = [cn.Place(a, kin.SitePos(b), label=f"contact {a}-{b}")]
             res = solver.solve(ik.IKProblem(tuple(contact), free), q)
             if not res.converged:
                 continue
@@ -179,21 +182,21 @@ DATA = pathlib.Path(__file__).resolve().parent / "data" / "keyframes.json"
 
 
 def _expr(e) -> dict:
-    if isinstance(e, ik.Const):
+    if isinstance(e, kin.Const):
         return {"const": list(e.value)}
-    if isinstance(e, ik.SitePos):
+    if isinstance(e, kin.SitePos):
         return {"site": e.site}
     raise TypeError(f"not stored: {e!r}")
 
 
 def _unexpr(o: dict):
-    return ik.Const(tuple(o["const"])) if "const" in o else ik.SitePos(o["site"])
+    return kin.Const(tuple(o["const"])) if "const" in o else kin.SitePos(o["site"])
 
 
 def _cons(c) -> dict:
-    if isinstance(c, ik.Place):
+    if isinstance(c, cn.Place):
         return {"place": c.site, "target": _expr(c.target), "tol": c.tol, "label": c.label}
-    if isinstance(c, ik.Orient):
+    if isinstance(c, cn.Orient):
         return {"orient": c.body, "local": list(c.local), "rel": c.rel.value,
                 "vector": _expr(c.vector), "tol": c.tol, "label": c.label}  # fmt: skip
     raise TypeError(f"not stored: {c!r}")
@@ -201,8 +204,8 @@ def _cons(c) -> dict:
 
 def _uncons(o: dict):
     if "place" in o:
-        return ik.Place(o["place"], _unexpr(o["target"]), o["tol"], o["label"])
-    return ik.Orient(o["orient"], tuple(o["local"]), ik.Rel(o["rel"]), _unexpr(o["vector"]),
+        return cn.Place(o["place"], _unexpr(o["target"]), o["tol"], o["label"])
+    return cn.Orient(o["orient"], tuple(o["local"]), cn.Rel(o["rel"]), _unexpr(o["vector"]),
                      o["tol"], o["label"])  # fmt: skip
 
 

@@ -23,7 +23,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from azee_mj import ik, timeline  # noqa: E402
+from azee_mj import timeline  # noqa: E402
+from azee_mj.schedule import make_solver  # noqa: E402
 from azee_mj.score import load_score  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -68,7 +69,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
-    solver = ik.Solver()
+    solver = make_solver()
     rows = []
     lengths = [1, 2] if args.quick else [1, 2, 3, 4, 5, 6, 8, 10]
     for n in lengths:

@@ -94,9 +94,9 @@ def test_check_exit_codes(tmp_path, capsys):
     # A rollout whose right forearm passes through the chest fails the check.
     with np.load(out) as z:
         arrays = {k: z[k] for k in z.files}
-    from azee_mj.ik import Solver
+    from azee_mj.schedule import make_solver
 
-    s = Solver()
+    s = make_solver()
     for j, v in (("arm_R_flex", 0.3), ("arm_R_abd", -0.5), ("f_arm_R_flex", 0.0)):
         arrays["qpos"][:, s.model.jnt_qposadr[s.joint_id(j)]] = v
     bad = tmp_path / "bad.npz"

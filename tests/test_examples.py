@@ -12,10 +12,10 @@ import sys
 import numpy as np
 import pytest
 
-from azee_mj import ik
 from azee_mj.check import check_poses
 from azee_mj.model import load_model
-from azee_mj.timeline import contact_pairs, realize
+from azee_mj.schedule import contact_pairs, make_solver
+from azee_mj.timeline import realize
 
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 NAMES = sorted(p.stem for p in EXAMPLES.glob("*.json"))
@@ -35,7 +35,7 @@ def test_examples_exist():
 @pytest.mark.parametrize("name", NAMES)
 def test_example_realizes_within_tolerance(name, model):
     path = EXAMPLES / f"{name}.json"
-    rollout = realize(str(path), fps=FPS, solver=ik.Solver())
+    rollout = realize(str(path), fps=FPS, solver=make_solver())
     bad = [f"{t.block}#{t.index} {t.kind} worst {t.worst:.4g} {t.unit} > tol {t.tol:.4g}"
            for t in rollout.traces if not t.ok]  # fmt: skip
     assert all(t.ok for t in rollout.traces), "; ".join(bad)
@@ -48,8 +48,8 @@ def test_example_realizes_within_tolerance(name, model):
 
 def test_a_reused_solver_gives_the_same_motion():
     # A solve depends only on its problem and start, not on what the solver did before.
-    fresh = realize(str(EXAMPLES / "pointing.json"), fps=FPS, solver=ik.Solver())
-    solver = ik.Solver()
+    fresh = realize(str(EXAMPLES / "pointing.json"), fps=FPS, solver=make_solver())
+    solver = make_solver()
     realize(str(EXAMPLES / "armoire.json"), fps=FPS, solver=solver)
     again = realize(str(EXAMPLES / "pointing.json"), fps=FPS, solver=solver)
     np.testing.assert_array_equal(again.qpos, fresh.qpos)

@@ -8,14 +8,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from azee_mj import constraints as cn
 from azee_mj import ik
+from azee_mj import kinematics as kin
 from azee_mj.check import check_poses
+from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
 
 @pytest.fixture(scope="module")
 def solver() -> ik.Solver:
-    return ik.Solver(seed=0)
+    return make_solver(seed=0)
 
 
 def _fk(solver, q):
@@ -39,17 +42,17 @@ def _random_arm_posture(solver, rng):
 PALM_R = DEFAULT_MAP.bones["palm_R"]
 FARM_L = DEFAULT_MAP.bones["f_arm_L"]
 CONSTRAINTS = [
-    ik.Place("I_TIP_R", ik.Const((0.3, -0.1, 0.3))),
-    ik.Place("I_TIP_R", ik.SitePos("PA_L")),
-    ik.Place("T_TIP_R", ik.Lin(((1.0, ik.SitePos("CH")), (0.06, ik.BodyAxis("head", (1.0, 0, 0)))))),
-    ik.Orient("palm_R", PALM_R.nrm, ik.Rel.ALONG, ik.Const((0.0, 0.0, -1.0))),
-    ik.Orient("palm_R", PALM_R.dir, ik.Rel.OPP, ik.Const((1.0, 0.0, 0.0))),
-    ik.Orient("palm_R", PALM_R.nrm, ik.Rel.PERP, ik.Const((0.0, 1.0, 0.0))),
-    ik.Orient("f_arm_R", (0, 0, -1.0), ik.Rel.ALONG, ik.BodyAxis("f_arm_L", FARM_L.dir)),
-    ik.Orient("palm_R", PALM_R.dir, ik.Rel.PERP,
-              ik.Unit(ik.Cross(ik.BodyAxis("f_arm_L", FARM_L.dir), ik.Const((0, 0, 1.0))))),
-    ik.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), ik.SitePos("I_TIP_R")),
-    ik.JointTarget("index_R_1_flex", 0.5),
+    cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))),
+    cn.Place("I_TIP_R", kin.SitePos("PA_L")),
+    cn.Place("T_TIP_R", kin.Lin(((1.0, kin.SitePos("CH")), (0.06, kin.BodyAxis("head", (1.0, 0, 0)))))),
+    cn.Orient("palm_R", PALM_R.nrm, cn.Rel.ALONG, kin.Const((0.0, 0.0, -1.0))),
+    cn.Orient("palm_R", PALM_R.dir, cn.Rel.OPP, kin.Const((1.0, 0.0, 0.0))),
+    cn.Orient("palm_R", PALM_R.nrm, cn.Rel.PERP, kin.Const((0.0, 1.0, 0.0))),
+    cn.Orient("f_arm_R", (0, 0, -1.0), cn.Rel.ALONG, kin.BodyAxis("f_arm_L", FARM_L.dir)),
+    cn.Orient("palm_R", PALM_R.dir, cn.Rel.PERP,
+              kin.Unit(kin.Cross(kin.BodyAxis("f_arm_L", FARM_L.dir), kin.Const((0, 0, 1.0))))),
+    cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.SitePos("I_TIP_R")),
+    cn.JointTarget("index_R_1_flex", 0.5),
 ]
 
 
@@ -57,7 +60,7 @@ CONSTRAINTS = [
 def test_jacobian_matches_finite_differences(solver, c):
     rng = np.random.default_rng(3)
     q = _random_arm_posture(solver, rng)
-    plan = solver._plan(ik.IKProblem((c,), tuple(j for t in DEFAULT_MAP.tracks.values() for j in t)))
+    plan = solver.plan(ik.IKProblem((c,), tuple(j for t in DEFAULT_MAP.tracks.values() for j in t)))
     _fk(solver, q)
     r0, J = (x.copy() for x in plan.rows())
     eps = 1e-6
@@ -75,18 +78,18 @@ def test_jacobian_matches_finite_differences(solver, c):
 def test_fast_rows_equal_expression_rows(solver, c):
     """The compiled fast paths give the same rows as the general expression evaluator."""
     q = _random_arm_posture(solver, np.random.default_rng(4))
-    plan = solver._plan(ik.IKProblem((c,)))
+    plan = solver.plan(ik.IKProblem((c,)))
     _fk(solver, q)
     r, J = plan.rows()
-    rg, Jg = c.rows(ik._Kin(solver))
+    rg, Jg = c.rows(solver.kinematics())
     np.testing.assert_allclose(r, rg, atol=1e-9)
     np.testing.assert_allclose(J, Jg, atol=1e-9)
 
 
 def test_connect_equality_rows_are_mujocos(solver):
     """Placements mirrored as connect equalities give MuJoCo the rows the solver uses."""
-    problem = ik.IKProblem((ik.Place("I_TIP_R", ik.Const((0.3, -0.1, 0.3))),
-                            ik.Place("I_TIP_L", ik.SitePos("PA_R"))))
+    problem = ik.IKProblem((cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))),
+                            cn.Place("I_TIP_L", kin.SitePos("PA_R"))))
     m = solver.model
     m.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
     d = mujoco.MjData(m)
@@ -96,7 +99,7 @@ def test_connect_equality_rows_are_mujocos(solver):
     eq_rows = np.flatnonzero(d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
     assert eq_rows.size == 6
     efc_J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)
-    plan = solver._plan(problem)
+    plan = solver.plan(problem)
     solver.data.qpos[:] = d.qpos
     mujoco.mj_kinematics(m, solver.data)
     mujoco.mj_comPos(m, solver.data)
@@ -113,10 +116,10 @@ def test_reachable_problems_converge_to_a_tenth_of_a_millimetre(solver):
     for _ in range(8):
         truth = _random_arm_posture(solver, rng)
         d = _fk(solver, truth)
-        if ik.penetration_depth(solver.model, d) > 0:
+        if cn.penetration_depth(solver.model, d) > 0:
             continue
         d = _fk(solver, truth)
-        cons = tuple(ik.Place(s, ik.Const(tuple(d.site_xpos[solver.site_id(s)])))
+        cons = tuple(cn.Place(s, kin.Const(tuple(d.site_xpos[solver.site_id(s)])))
                      for s in ("I_TIP_R", "WR_R", "I_TIP_L", "WR_L"))
         res = solver.solve(ik.IKProblem(cons, free), solver.natural)
         assert res.converged
@@ -125,7 +128,7 @@ def test_reachable_problems_converge_to_a_tenth_of_a_millimetre(solver):
 
 def test_out_of_reach_target_reports_its_residual(solver):
     target = np.array([1.5, -0.4, 0.4])
-    res = solver.solve(ik.IKProblem((ik.Place("M_TIP_R", ik.Const(tuple(target))),)))
+    res = solver.solve(ik.IKProblem((cn.Place("M_TIP_R", kin.Const(tuple(target))),)))
     assert not res.converged
     assert np.all(np.isfinite(res.qpos))
     d = _fk(solver, res.qpos)
@@ -142,8 +145,8 @@ def test_out_of_reach_target_reports_its_residual(solver):
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-0.6, 1.2)))
 def test_joint_limits_are_never_exceeded(solver, target):
-    res = solver.solve(ik.IKProblem((ik.Place("I_TIP_R", ik.Const(target)),
-                                     ik.Orient("palm_R", PALM_R.nrm, ik.Rel.ALONG, ik.Const((0, 0, 1.0))))))
+    res = solver.solve(ik.IKProblem((cn.Place("I_TIP_R", kin.Const(target)),
+                                     cn.Orient("palm_R", PALM_R.nrm, cn.Rel.ALONG, kin.Const((0, 0, 1.0))))))
     m = solver.model
     q = res.qpos[m.jnt_qposadr]
     assert np.all(q >= m.jnt_range[:, 0]) and np.all(q <= m.jnt_range[:, 1])
@@ -155,9 +158,9 @@ def test_hand_pushed_into_the_face_stops_at_the_skin(solver):
     nose = d.site_xpos[solver.site_id("NO")]
     inside = nose + np.array([-0.06, 0.0, 0.0])  # 6 cm behind the nose tip, inside the head
     arm = DEFAULT_MAP.tracks["arm_R"]
-    res = solver.solve(ik.IKProblem((ik.Place("I_TIP_R", ik.Const(tuple(inside))),), arm))
+    res = solver.solve(ik.IKProblem((cn.Place("I_TIP_R", kin.Const(tuple(inside))),), arm))
     assert not res.converged
-    assert res.penetration <= ik.PENETRATION_LIMIT
+    assert res.penetration <= cn.PENETRATION_LIMIT
     report = check_poses(solver.model, res.qpos)
     assert report.clean, report
     # It got as close as the skin allows: within a few centimetres of the nose tip.
@@ -166,16 +169,16 @@ def test_hand_pushed_into_the_face_stops_at_the_skin(solver):
 
 
 def test_fingertip_contact_touches_without_interpenetration():
-    solver = ik.Solver(seed=0)
+    solver = make_solver(seed=0)
     # Index fingertips touch, the other fingers curled (the pointing hand shape).
-    curl = tuple(ik.JointTarget(f"{f}_{x}_{n}_flex", v) for x in "RL"
+    curl = tuple(cn.JointTarget(f"{f}_{x}_{n}_flex", v) for x in "RL"
                  for f in ("middle", "ring", "little") for n, v in ((1, 1.5), (2, 1.6), (3, 1.0)))
-    res = solver.solve(ik.IKProblem((ik.Place("I_TIP_R", ik.SitePos("I_TIP_L")),) + curl))
+    res = solver.solve(ik.IKProblem((cn.Place("I_TIP_R", kin.SitePos("I_TIP_L")),) + curl))
     assert res.converged, res.residuals
     assert res.residuals[0].value <= 1e-3
     report = check_poses(solver.model, res.qpos)  # nothing deeper than 1 mm
     assert report.clean, report.penetrations
-    assert report.max_depth[0] <= ik.CONTACT_ALLOWANCE + 1e-5
+    assert report.max_depth[0] <= cn.CONTACT_ALLOWANCE + 1e-5
 
 
 def test_pose_check_finds_a_penetration_made_on_purpose(solver):

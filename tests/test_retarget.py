@@ -8,9 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from azee_mj import ik, timeline
+from azee_mj import timeline
 from azee_mj.errors import ModelError
 from azee_mj.model import MODEL_PATH, check_map, load_model
+from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
 DATA = Path(__file__).parent / "data"
@@ -57,9 +58,9 @@ def test_load_model_checks_the_map(tmp_path):
 
 
 def test_a_renamed_signer_realizes_the_same_motion():
-    original = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
-    solver = ik.Solver(_renamed_spec("sg_"), _renamed_map("sg_"), seed=0)
-    renamed = timeline.realize(DATA / "good.json", solver=solver)
+    original = timeline.realize(DATA / "good.json", solver=make_solver(seed=0))
+    solver = make_solver(_renamed_spec("sg_"), _renamed_map("sg_"), seed=0)
+    renamed = timeline.realize(DATA / "good.json", solver=solver, signer_map=_renamed_map("sg_"))
     assert renamed.site_names == original.site_names  # AZee names, whatever the model calls them
     assert np.abs(renamed.site_pos - original.site_pos).max() < 1e-3
     assert all(t.ok for t in renamed.traces)
@@ -68,9 +69,9 @@ def test_a_renamed_signer_realizes_the_same_motion():
 def test_a_smaller_signer_meets_the_same_constraints():
     """A 0.9-scale signer (1.53 m) with the same map: the score's targets are relative to
     its own body (sites and loci), so every constraint still holds."""
-    solver = ik.Solver(_renamed_spec("", 0.9), DEFAULT_MAP, seed=0)
+    solver = make_solver(_renamed_spec("", 0.9), DEFAULT_MAP, seed=0)
     small = timeline.realize(DATA / "good.json", solver=solver)
     assert all(t.ok for t in small.traces), [(t.block, t.worst) for t in small.traces]
-    tall = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    tall = timeline.realize(DATA / "good.json", solver=make_solver(seed=0))
     head = small.site_names.index("HEAD")
     assert small.site_pos[0, head, 2] == pytest.approx(0.9 * tall.site_pos[0, head, 2], rel=0.02)

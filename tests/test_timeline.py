@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from azee_mj import ik, timeline
 from azee_mj.check import check_poses
+from azee_mj.schedule import contact_pairs, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 
@@ -22,7 +23,7 @@ DATA = Path(__file__).parent / "data"
 
 @pytest.fixture(scope="module")
 def solver() -> ik.Solver:
-    return ik.Solver(seed=0)
+    return make_solver(seed=0)
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +75,7 @@ def test_no_joint_leaves_its_range_or_moves_faster_than_25_rad_s(kinds, solver):
 
 
 def test_no_penetration_at_any_frame(kinds, solver):
-    allowed = timeline.contact_pairs(DATA / "kinds.json", kinds.time)
+    allowed = contact_pairs(DATA / "kinds.json", kinds.time)
     report = check_poses(solver.model, kinds.qpos, allowed=allowed)
     assert report.clean, report.penetrations[:3]
 
@@ -216,7 +217,7 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     np.testing.assert_allclose(gap, [0.0, -0.0136, 0.0], atol=1e-3)
     head = _dofs(solver, "head")
     assert np.abs(rollout.qpos[:, head] - rollout.qpos[0, head]).max() == 0.0
-    allowed = timeline.contact_pairs(load_score(score), rollout.time, solver)
+    allowed = contact_pairs(load_score(score), rollout.time, solver)
     assert set(allowed) == set(range(len(rollout.time) - 1))
     assert {tuple(sorted(p)) for v in allowed.values() for p in v} == {("index_L_3", "index_R_3")}
 
@@ -286,14 +287,14 @@ def test_golden_rollout(solver):
     ``python -c "from tests.test_timeline import write_golden; write_golden()"`` after an
     intended change, and say why in the commit."""
     golden = np.load(DATA / "good_golden.npz")
-    r = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    r = timeline.realize(DATA / "good.json", solver=make_solver(seed=0))
     np.testing.assert_array_equal(r.time, golden["time"])
     # Same posture to 1 mm at every site (solver round-off and restarts aside).
     assert np.abs(r.site_pos - golden["site_pos"]).max() < 1e-3
 
 
 def write_golden():
-    r = timeline.realize(DATA / "good.json", solver=ik.Solver(seed=0))
+    r = timeline.realize(DATA / "good.json", solver=make_solver(seed=0))
     np.savez_compressed(DATA / "good_golden.npz", time=r.time, qpos=r.qpos, site_pos=r.site_pos)
 
 
@@ -340,7 +341,7 @@ def test_schedule_intervals_lie_within_their_parents(solver, children):
     score = load_score({"format": "azee-score", "version": 1,
                         "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0,
                                  "children": children}})
-    r = timeline._Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
+    r = timeline.Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
     sched = r.schedule()
     parents = {c.path: b for b in score.blocks() for c in b.children}
     for track, intervals in sched.items():

@@ -14,6 +14,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from azee_mj import cli
+from azee_mj import markers as mk
+from azee_mj import render as rd
 from azee_mj import score as sc
 from azee_mj import viewer as v
 from azee_mj.cli import main
@@ -31,14 +34,14 @@ def rollout():
 
 
 @pytest.fixture(scope="module")
-def clip(rollout) -> v.Clip:
-    return v.Clip.from_rollout(rollout, sc.load_score(GOOD), "good")
+def clip(rollout) -> mk.Clip:
+    return mk.Clip.from_rollout(rollout, sc.load_score(GOOD), "good")
 
 
 @pytest.fixture(scope="module")
 def gl() -> str:
     try:
-        return v.gl_backend()
+        return rd.gl_backend()
     except AzeeError as e:
         pytest.skip(f"no OpenGL backend works here, so nothing can be rendered: {e}")
 
@@ -48,28 +51,21 @@ def gl() -> str:
 # ---------------------------------------------------------------------------------------
 
 
-def _expected_targets(clip: v.Clip, frame: int):
+def _expected_targets(clip: mk.Clip, frame: int):
     """Targets of the K1 block evaluated directly from the score's expressions."""
+    from azee_mj.kinematics import Kinematics, compile_point, compile_vector
     from azee_mj.sites import DEFAULT_MAP
 
-    m = v.scene_model()
+    m = rd.scene_model()
     d = mujoco.MjData(m)
     d.qpos[:] = clip.qpos[frame]
     mujoco.mj_kinematics(m, d)
 
-    def site_pos(ref):
-        return d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE,
-                                             ref.model_site(DEFAULT_MAP))].copy()  # fmt: skip
-
-    def bone_axis(bone, axis):
-        b = bone.bone_map(DEFAULT_MAP)
-        bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b.body)
-        return d.xmat[bid].reshape(3, 3) @ np.asarray(b.dir if axis is sc.Axis.DIR else b.nrm)
-
     k1 = clip.score.block("GOOD.K1")
     place, orient = k1.constraints
-    p = sc.eval_point(place.at, site_pos, bone_axis)
-    vec = sc.eval_vector(orient.vector, site_pos, bone_axis)
+    kin = Kinematics(m, d)
+    p = kin.value(compile_point(place.at, DEFAULT_MAP))
+    vec = kin.value(compile_vector(orient.vector, DEFAULT_MAP))
     body = orient.bone.model_body(DEFAULT_MAP)
     origin = d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)].copy()
     return p, origin, vec / np.linalg.norm(vec)
@@ -77,28 +73,28 @@ def _expected_targets(clip: v.Clip, frame: int):
 
 def test_markers_inside_k1_are_the_targets(clip):
     frame = clip.frame_at(0.2)  # inside K1 [0, 0.4); PERM (morphs only) draws nothing
-    m = v.scene_model()
+    m = rd.scene_model()
     d = mujoco.MjData(m)
-    ms = v.markers(m, d, clip, frame, v.Targets(clip.score))
+    ms = mk.markers(m, d, clip, frame, mk.Targets(clip.score))
     targets = [x for x in ms if x.kind != "contact"]
     assert [(x.kind, x.label) for x in targets] == [("sphere", "GOOD.K1#1"),
                                                     ("arrow", "GOOD.K1#2")]  # fmt: skip
     p, origin, direction = _expected_targets(clip, frame)
     np.testing.assert_allclose(targets[0].pos, p, atol=1e-9)
     np.testing.assert_allclose(targets[1].pos, origin, atol=1e-9)
-    np.testing.assert_allclose(targets[1].end - targets[1].pos, v.ARROW_LENGTH * direction,
+    np.testing.assert_allclose(targets[1].end - targets[1].pos, mk.ARROW_LENGTH * direction,
                                atol=1e-9)  # fmt: skip
 
 
 def test_marker_colours_follow_the_residual_traces(clip, rollout):
     rollout_traces = {(t.block, t.index): t for t in rollout.traces}
-    m = v.scene_model()
+    m = rd.scene_model()
     d = mujoco.MjData(m)
-    tg = v.Targets(clip.score)
+    tg = mk.Targets(clip.score)
     for frame in (clip.frame_at(0.1), clip.frame_at(1.0)):
-        for x in v.markers(m, d, clip, frame, tg):
+        for x in mk.markers(m, d, clip, frame, tg):
             if x.kind == "contact":
-                assert x.violated and x.residual > v.PENETRATION
+                assert x.violated and x.residual > mk.PENETRATION
                 continue
             block, index = x.label.split("#")
             tr = rollout_traces[(block, int(index))]
@@ -107,29 +103,29 @@ def test_marker_colours_follow_the_residual_traces(clip, rollout):
 
 
 def test_no_targets_without_a_score(clip):
-    bare = v.Clip(clip.time, clip.qpos, clip.fps, {}, None)
-    m = v.scene_model()
+    bare = mk.Clip(clip.time, clip.qpos, clip.fps, {}, None)
+    m = rd.scene_model()
     d = mujoco.MjData(m)
-    assert all(x.kind == "contact" for x in v.markers(m, d, bare, 10, None))
-    assert v.key_frames(bare)[0] == ("t = 0.00 s", 0)
+    assert all(x.kind == "contact" for x in mk.markers(m, d, bare, 10, None))
+    assert rd.key_frames(bare)[0] == ("t = 0.00 s", 0)
 
 
 def test_add_markers_builds_geoms(clip):
-    m = v.scene_model()
+    m = rd.scene_model()
     d = mujoco.MjData(m)
-    ms = v.markers(m, d, clip, clip.frame_at(0.2), v.Targets(clip.score))
+    ms = mk.markers(m, d, clip, clip.frame_at(0.2), mk.Targets(clip.score))
     scn = mujoco.MjvScene(m, maxgeom=50)
-    assert v.add_markers(scn, ms) == len(ms) == scn.ngeom
+    assert mk.add_markers(scn, ms) == len(ms) == scn.ngeom
     g = scn.geoms[0]
     assert g.type == mujoco.mjtGeom.mjGEOM_SPHERE
     np.testing.assert_allclose(g.pos, ms[0].pos, atol=1e-6)
     assert scn.geoms[1].type == mujoco.mjtGeom.mjGEOM_ARROW
     full = mujoco.MjvScene(m, maxgeom=1)
-    assert v.add_markers(full, ms) == 1  # never overflows the scene
+    assert mk.add_markers(full, ms) == 1  # never overflows the scene
 
 
 def test_overlay_text_names_time_and_active_blocks(clip):
-    left, right = v.frame_text(clip, clip.frame_at(0.2))
+    left, right = mk.frame_text(clip, clip.frame_at(0.2))
     rows = dict(zip(left.split("\n"), right.split("\n")))
     assert rows["time"].startswith("0.200")
     assert rows["arm_R"] == "GOOD.K1"
@@ -138,7 +134,7 @@ def test_overlay_text_names_time_and_active_blocks(clip):
 
 
 def test_player_keys():
-    p = v._Player(10)
+    p = v.Player(10)
     p.key(32)
     assert p.paused
     p.key(262), p.key(262), p.key(263)
@@ -164,8 +160,8 @@ def _png(path) -> np.ndarray:
 
 def test_still_shows_the_signer_and_frames_differ(clip, gl, tmp_path):
     a, b = tmp_path / "a.png", tmp_path / "b.png"
-    v.render(clip, a, time=0.2, size=(320, 240))
-    v.render(clip, b, time=1.0, size=(320, 240))
+    rd.render(clip, a, time=0.2, size=(320, 240))
+    rd.render(clip, b, time=1.0, size=(320, 240))
     ia, ib = _png(a), _png(b)
     assert ia.shape == (240, 320, 3)
     assert ia.std() > 10, "blank image"
@@ -180,7 +176,7 @@ def test_mp4_has_the_expected_frames_and_duration(clip, gl, tmp_path):
     import imageio.v3 as iio
 
     out = tmp_path / "g.mp4"
-    v.render(clip, out, size=SMALL, fps=25)
+    rd.render(clip, out, size=SMALL, fps=25)
     frames = iio.imread(out, plugin="FFMPEG")
     n = int(np.floor(clip.duration * 25 + 1e-9)) + 1
     assert frames.shape == (n, SMALL[1], SMALL[0], 3)
@@ -194,7 +190,7 @@ def test_gif_frames_and_timing(clip, gl, tmp_path):
     from PIL import Image
 
     out = tmp_path / "g.gif"
-    v.render(clip, out, size=SMALL, fps=10)
+    rd.render(clip, out, size=SMALL, fps=10)
     with Image.open(out) as im:
         assert im.size == SMALL
         total = 0
@@ -208,9 +204,9 @@ def test_gif_frames_and_timing(clip, gl, tmp_path):
 
 def test_contact_sheet_of_key_postures(clip, gl, tmp_path):
     out = tmp_path / "sheet.png"
-    v.render(clip, out, size=SMALL, targets=True)
+    rd.render(clip, out, size=SMALL, targets=True)
     img = _png(out)
-    assert [k for k, _ in v.key_frames(clip)] == ["K1", "PERM", "K2"]
+    assert [k for k, _ in rd.key_frames(clip)] == ["K1", "PERM", "K2"]
     assert img.shape == (SMALL[1], 3 * SMALL[0], 3)
     tiles = [img[:, i * SMALL[0]:(i + 1) * SMALL[0]] for i in range(3)]
     assert np.abs(tiles[0] - tiles[2]).mean() > 0.5
@@ -248,7 +244,7 @@ def test_cli_bad_render_options(args, message, tmp_path, capsys, monkeypatch):
 
 def test_missing_input_suffix(tmp_path):
     with pytest.raises(AzeeError, match="expected a SCORE.json or a ROLLOUT.npz"):
-        v.load_clip(tmp_path / "x.txt")
+        cli.load_clip(tmp_path / "x.txt")
 
 
 # ---------------------------------------------------------------------------------------
@@ -293,12 +289,10 @@ def test_preview_without_display_is_a_clear_error(monkeypatch, capsys):
 
 
 def test_no_gl_backend_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(v, "_BACKEND", None)
     monkeypatch.delenv("MUJOCO_GL", raising=False)
     tried = []
-    monkeypatch.setattr(v, "_probe", lambda b: tried.append(b) or False)
     with pytest.raises(AzeeError, match="no OpenGL backend for offscreen rendering: tried "
                                         "MUJOCO_GL=egl .* and MUJOCO_GL=osmesa"):  # fmt: skip
-        v.gl_backend()
+        rd.gl_backend(probe=lambda b: tried.append(b) or False)
     assert tried == ["egl", "osmesa"]
     assert "MUJOCO_GL" not in os.environ

@@ -24,7 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from azee_mj.model import SCENE_PATH
+from azee_mj.render import gl_backend, scene_model
 from azee_mj.sites import DEFAULT_MAP, HANDSHAPES
 
 RAISE = {
@@ -66,7 +66,8 @@ VIEWS = ((200.0, -8.0), (250.0, -8.0))
 def render_grid(names: list[str], out: Path, tile: int = 200, cols: int = 4) -> None:
     from PIL import Image, ImageDraw, ImageFont
 
-    model = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
+    gl_backend()
+    model = scene_model(tile, tile)
     data = mujoco.MjData(model)
     base = raised_posture(model)
     renderer = mujoco.Renderer(model, height=tile, width=tile)

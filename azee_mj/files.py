@@ -1,5 +1,5 @@
-"""Files: rollouts to and from ``.npz``, reports to JSON. Writes are atomic (temp + rename),
-so a failure never leaves a partial output file."""
+"""Output files written atomically (temp file in the same directory + rename), so a failure
+never leaves a partial output file: ``.npz`` arrays and JSON."""
 
 from __future__ import annotations
 
@@ -10,11 +10,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
-from azee_mj.errors import InputFileError
-
-#: Arrays every rollout file holds.
-REQUIRED = ("time", "qpos", "fps", "site_names", "site_pos")
 
 
 @contextlib.contextmanager
@@ -49,25 +44,3 @@ def save_json(path: str | os.PathLike, obj) -> None:
     """Write ``obj`` as indented JSON, atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(obj, indent=1) + "\n")
-
-
-def load_rollout_arrays(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read a rollout ``.npz``; raise :class:`InputFileError` naming what is wrong."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise InputFileError(f"{path}: no such file") from None
-    except (OSError, ValueError) as e:
-        raise InputFileError(f"{path}: not a rollout .npz file ({e})") from None
-    missing = [k for k in REQUIRED if k not in arrays]
-    if missing:
-        raise InputFileError(
-            f"{path}: missing array(s) {', '.join(missing)}; a rollout holds "
-            f"{', '.join(REQUIRED)}"
-        )
-    q = arrays["qpos"]
-    if q.ndim != 2 or len(q) != len(arrays["time"]):
-        raise InputFileError(f"{path}: qpos must be (T, nq) with T = len(time) = "
-                             f"{len(arrays['time'])}; got shape {q.shape}")  # fmt: skip
-    return arrays

@@ -1,0 +1,219 @@
+"""What a posture must satisfy, as rows for the solver.
+
+Every constraint follows one protocol (:class:`Constraint`): ``rows(k)`` gives residual rows
+(m,) and Jacobian rows (m, nv) divided by its tolerance, so ``|row| <= 1`` means "within
+tolerance"; ``residual(k)`` its error in its own unit ([m] or [rad]); ``tol`` that tolerance;
+``soft`` whether it may stay unmet without blocking convergence. ``k`` is a
+:class:`~azee_mj.kinematics.Kinematics` on the posture at hand. Self-collision adds one row
+per penetrating contact (:class:`Collisions`).
+
+Orientations and gaze are rows of our own (for a world axis ``a = R u``: ``a - v`` along,
+``a . v`` perpendicular, ``da/dq = -[a]x J_rot``).
+
+Units: metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar, Protocol
+
+import mujoco
+import numpy as np
+
+from azee_mj.kinematics import BodyAxis, BodyOrigin, Expr, Kinematics, Lin, Unit
+from azee_mj.score import Rel  # along / opp / perp: the score's own relation
+
+#: Penetration depth [m] at which a collision row reaches 1 (its "tolerance").
+COLLISION_TOL = 1e-4
+#: Depth [m] allowed between two bodies that a contact constraint brings together.
+CONTACT_ALLOWANCE = 5e-4
+#: Deepest penetration [m] a converged posture may have between non-neighbouring geoms.
+PENETRATION_LIMIT = 1e-3
+
+
+class Constraint(Protocol):
+    """The protocol of :class:`Place`, :class:`Orient`, :class:`Look`, :class:`JointTarget`."""
+
+    tol: float
+    label: str
+    soft: bool
+
+    def rows(self, k: Kinematics) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def residual(self, k: Kinematics) -> float: ...
+
+
+@dataclasses.dataclass(frozen=True)
+class Place:
+    """Model site ``site`` at the point ``target``; within ``tol`` [m]."""
+
+    site: str
+    target: Expr
+    tol: float = 1e-3
+    label: str = ""
+    soft: ClassVar[bool] = False
+
+    def rows(self, k: Kinematics):
+        p, jp = k.site(k.names.site(self.site))
+        t, jt = k.eval(self.target)
+        return (p - t) / self.tol, (jp if jt is None else jp - jt) / self.tol
+
+    def residual(self, k: Kinematics) -> float:
+        p = k.d.site_xpos[k.names.site(self.site)]
+        return float(np.linalg.norm(p - k.eval(self.target, jac=False)[0]))
+
+
+@dataclasses.dataclass(frozen=True)
+class Orient:
+    """Body axis ``local`` (a bone's DIR or NRM) along / opposite / perpendicular to
+    ``vector``; within ``tol`` [rad]."""
+
+    body: str
+    local: tuple[float, float, float]
+    rel: Rel
+    vector: Expr
+    tol: float = np.deg2rad(1.0)
+    label: str = ""
+    soft: ClassVar[bool] = False
+
+    def _av(self, k: Kinematics, jac: bool):
+        a, ja = k.eval(BodyAxis(self.body, self.local), jac)
+        v, jv = k.eval(Unit(self.vector), jac)
+        if self.rel is Rel.OPP:
+            v, jv = -v, (None if jv is None else -jv)
+        return a, ja, v, jv
+
+    def rows(self, k: Kinematics):
+        a, ja, v, jv = self._av(k, True)
+        if self.rel is Rel.PERP:
+            r = np.array([a @ v])
+            J = (v @ ja)[None, :]
+            if jv is not None:
+                J = J + (a @ jv)[None, :]
+        else:
+            r = a - v
+            J = ja if jv is None else ja - jv
+        return r / self.tol, J / self.tol
+
+    def residual(self, k: Kinematics) -> float:
+        a, _, v, _ = self._av(k, False)
+        c = float(np.clip(a @ v, -1.0, 1.0))
+        return abs(np.arcsin(c)) if self.rel is Rel.PERP else float(np.arccos(c))
+
+
+@dataclasses.dataclass(frozen=True)
+class Look:
+    """Each eye body's gaze axis ``local`` points at ``target``; within ``tol`` [rad]."""
+
+    eyes: tuple[tuple[str, tuple[float, float, float]], ...]
+    target: Expr
+    tol: float = np.deg2rad(1.0)
+    label: str = ""
+    soft: ClassVar[bool] = False
+
+    def _orients(self) -> list[Orient]:
+        return [
+            Orient(body, local, Rel.ALONG, Lin(((1.0, self.target), (-1.0, BodyOrigin(body)))),
+                   self.tol)
+            for body, local in self.eyes
+        ]  # fmt: skip
+
+    def rows(self, k: Kinematics):
+        rows = [o.rows(k) for o in self._orients()]
+        return np.concatenate([r for r, _ in rows]), np.vstack([j for _, j in rows])
+
+    def residual(self, k: Kinematics) -> float:
+        return max(o.residual(k) for o in self._orients())
+
+
+@dataclasses.dataclass(frozen=True)
+class JointTarget:
+    """Joint ``joint`` at ``value`` [rad or m], e.g. from a morph; within ``tol``."""
+
+    joint: str
+    value: float
+    tol: float = 0.02
+    label: str = ""
+    #: A soft target guides the posture but never blocks convergence (e.g. an interpolation).
+    soft: bool = False
+
+    def rows(self, k: Kinematics):
+        j = k.names.joint(self.joint)
+        J = np.zeros((1, k.m.nv))
+        J[0, k.m.jnt_dofadr[j]] = 1.0 / self.tol
+        return np.array([(k.d.qpos[k.m.jnt_qposadr[j]] - self.value) / self.tol]), J
+
+    def residual(self, k: Kinematics) -> float:
+        j = k.names.joint(self.joint)
+        return abs(float(k.d.qpos[k.m.jnt_qposadr[j]]) - self.value)
+
+
+@dataclasses.dataclass(frozen=True)
+class CollisionRows:
+    """Rows of the contacts deeper than allowed: residual (c,), Jacobian (c, free), and the
+    deepest penetration [m] between bodies not allowed to touch."""
+
+    r: np.ndarray
+    J: np.ndarray
+    depth: float
+
+
+class Collisions:
+    """Self-collision as rows: a one-sided penalty per contact reported by ``mj_collision``,
+    zero while the geoms are apart and ``depth / COLLISION_TOL`` when they penetrate.
+
+    ``floor`` (nbody, nbody) is the distance allowed per body pair (``-CONTACT_ALLOWANCE``
+    for pairs a contact brings together, else 0); rows are over the dofs ``free``.
+    """
+
+    tol = COLLISION_TOL
+    soft = False
+
+    def __init__(self, model: mujoco.MjModel, floor: np.ndarray, free: np.ndarray):
+        self.m, self.floor, self.free = model, floor, free
+        self.j1, self.j2 = np.empty((3, model.nv)), np.empty((3, model.nv))
+
+    def rows(self, d: mujoco.MjData) -> CollisionRows | None:
+        """The rows on the posture in ``d`` (runs ``mj_collision``); None if no contact is
+        deeper than allowed."""
+        m, free = self.m, self.free
+        mujoco.mj_collision(m, d)
+        n = d.ncon
+        if not n:
+            return None
+        dist = d.contact.dist[:n]
+        geom = d.contact.geom[:n]
+        b1 = m.geom_bodyid[geom[:, 0]]
+        b2 = m.geom_bodyid[geom[:, 1]]
+        floor = self.floor[b1, b2]
+        hit = np.flatnonzero(dist < floor)
+        if not hit.size:
+            return None
+        own = dist[hit][floor[hit] == 0.0]
+        depth = float(-own.min()) if own.size else 0.0
+        normal = d.contact.frame[hit, :3]
+        pos = d.contact.pos[hit]
+        j1, j2 = self.j1, self.j2
+        rows = np.empty((hit.size, free.size))
+        for r_i, i in enumerate(hit):
+            mujoco.mj_jac(m, d, j1, None, pos[r_i], b1[i])
+            mujoco.mj_jac(m, d, j2, None, pos[r_i], b2[i])
+            rows[r_i] = normal[r_i] @ (j2 - j1)[:, free]
+        return CollisionRows((dist[hit] - floor[hit]) / COLLISION_TOL, rows / COLLISION_TOL, depth)
+
+
+def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> float:
+    """Deepest penetration [m] (>= 0) between colliding geoms of posture ``d.qpos``, ignoring
+    body pairs in ``allowed``. Runs ``mj_kinematics`` and ``mj_collision``."""
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_collision(m, d)
+    n = d.ncon
+    if not n:
+        return 0.0
+    dist = d.contact.dist[:n]
+    if allowed:
+        b = m.geom_bodyid[d.contact.geom[:n]]
+        keep = np.array([(x, y) not in allowed for x, y in b])
+        dist = dist[keep]
+    return float(max(0.0, -dist.min())) if dist.size else 0.0

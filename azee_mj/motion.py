@@ -1,0 +1,311 @@
+"""Motion between the key postures: blends, transpath paths and trills.
+
+Each track holds its key posture while driven and moves between postures with a
+minimum-jerk blend; frames where a blending track still has constraints (an overlapping
+block, a transpath path point, a permanent hand shape) are solved with the blend as a soft
+target; trills are added last. :class:`Motion` does this on a
+:class:`~azee_mj.schedule.Schedule`.
+
+Units: seconds, metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+
+import mujoco
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+from azee_mj import score as sc
+from azee_mj.kinematics import Const, compile_point, compile_vector
+from azee_mj.schedule import Schedule
+
+#: Longest blend between two postures of a track when the gap allows more [s].
+MAX_BLEND = 0.6
+#: Shortest blend when a posture must change with no gap [s].
+MIN_BLEND = 0.08
+#: Postures closer than this per joint [rad] are the same (the solver's accuracy).
+SAME_POSTURE = 2e-3
+#: Peak joint speed a blend is sized for [rad/s] (the limit is 25 rad/s).
+BLEND_SPEED = 12.0
+
+
+class Mode(enum.Enum):
+    """How the score is laid out in time."""
+
+    MULTITRACK = "multitrack"
+    FLATTENED = "flattened"
+
+
+@dataclasses.dataclass
+class Key:
+    """One track's posture over a segment, and the constraints that hold it there."""
+
+    start: float
+    end: float
+    q: np.ndarray  # (nq,) the component's solved posture (only this track's joints count)
+    cons: tuple  # ik constraints of the component (hard), for frames inside this key
+    free: tuple[str, ...]  # joints of the component
+
+
+def minjerk(u: np.ndarray | float):
+    """The minimum-jerk profile 10u^3 - 15u^4 + 6u^5 on [0, 1] (clipped outside)."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+
+
+class Motion:
+    """Frames from key postures on ``schedule`` (``mode`` flattened or multitrack); every IK
+    result solved for them is kept in ``results``."""
+
+    def __init__(self, schedule: Schedule, mode: Mode):
+        self.s, self.mode = schedule, mode
+        self.solver, self.m, self.smap = schedule.solver, schedule.m, schedule.smap
+        self.comp, self.blocks = schedule.comp, schedule.blocks
+        self.track_joints, self.track_dofs = schedule.track_joints, schedule.track_dofs
+        self.home = schedule.home
+        self.results: list[ik.IKResult] = []
+
+    def solve(self, cons, free, q0, t: float) -> ik.IKResult:
+        """Solve ``cons`` moving joints ``free`` from ``q0``, allowing the contacts of time
+        ``t`` [s]; every result is kept in ``results``."""
+        names = self.s.body_names
+        touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
+        res = self.solver.solve(ik.IKProblem(tuple(cons), tuple(free), touching, q0), q0)
+        self.results.append(res)
+        return res
+
+    def soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
+        """Soft targets keeping ``joints`` near posture ``qf`` (a blend to follow)."""
+        adr = self.m.jnt_qposadr
+        return [cn.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
+                for j in sorted(joints)]  # fmt: skip
+
+    def penetrates(self, qf: np.ndarray, t: float) -> bool:
+        """Whether posture ``qf`` penetrates beyond the limit outside time ``t``'s contacts."""
+        d = self.solver.data
+        d.qpos[:] = qf
+        return cn.penetration_depth(self.m, d, self.s.allowed_at(t)) > cn.PENETRATION_LIMIT
+
+    def track_curve(self, tkeys: list[Key], times: np.ndarray, dofs: np.ndarray,
+                     carried: list[float] = ()):  # fmt: skip
+        """Joint values (T, len(dofs)) of one track and a (T,) flag where it blends. A blend
+        starts no earlier than the end of a key of another track that this track carries
+        (``carried``, end times), so that it does not move a target while it is held."""
+        out = np.tile(self.home[dofs], (len(times), 1))
+        blend = np.zeros(len(times), bool)
+        if not tkeys:
+            return out, blend
+        # Merge consecutive keys with the same posture into holds.
+        holds: list[list] = []
+        for k in tkeys:
+            qk = k.q[dofs]
+            if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
+                holds[-1][1] = k.end
+            else:
+                holds.append([k.start, k.end, qk])
+        prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
+        first = True
+        for a, b, qk in holds:
+            if self.mode is Mode.FLATTENED:
+                w0, w1 = (a, a) if first else (prev_end, a)
+            else:
+                gap = a - prev_end
+                need = max(MIN_BLEND, 1.875 * float(np.max(np.abs(qk - prev_q))) / BLEND_SPEED)
+                if first and a <= 1e-9:
+                    w0 = w1 = a
+                elif gap >= 1e-9:
+                    w0, w1 = max(prev_end, a - max(min(gap, MAX_BLEND), min(need, gap))), a
+                    if first:
+                        w0 = max(0.0, a - max(min(a, MAX_BLEND), need))
+                else:  # no gap: blend at the end of the previous hold
+                    w0, w1 = max(prev_start, a - need), a
+                pins = [e for e in carried if e < w1 + 1e-9]
+                if pins:  # never shorter than MIN_BLEND: a carried hold may end as this starts
+                    w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
+            sel = (times >= w0) & (times < w1)
+            if w1 > w0:
+                u = minjerk((times[sel] - w0) / (w1 - w0))[:, None]
+                out[sel] = prev_q + u * (qk - prev_q)
+                blend[sel] = True
+            out[(times >= w1)] = qk
+            prev_q, prev_end, prev_start, first = qk, b, a, False
+        return out, blend
+
+    def constrained_blends(self, q, times, moving, names, keys):
+        """Frames where a blending track still has constraints become IK problems."""
+        tp = [b for b in self.blocks if b.kind is sc.BlockKind.TRANSPATH]
+        paths = {b.path: self.transpath_points(b, q, times) for b in tp}
+        sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
+        limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
+        prev = None
+        for f, t in enumerate(times):
+            tracks = {names[i] for i in np.flatnonzero(moving[f])}
+            cons, free = [], set()
+            for tr in tracks:
+                # While blending toward the next posture, keep what both postures keep.
+                key = next((k for k in keys[tr] if k.start <= t < k.end), None)
+                nxt = next((k for k in keys[tr] if k.start > t), None)
+                if key is not None:
+                    keep = [c for c in key.cons if nxt is None or c in nxt.cons]
+                    cons += [c for c in keep if c not in cons]
+                    free |= set(key.free)
+            for b in tp:
+                if b.start <= t < b.end and limbs[b.path] & tracks:
+                    cons.append(cn.Place(sites[b.path], Const(tuple(paths[b.path][f])), 1e-3,
+                                         f"{b.path}@path"))  # fmt: skip
+                    free |= {j for tr in limbs[b.path] for j in self.track_joints[tr]}
+            if not cons:
+                if tracks and self.penetrates(q[f], t):
+                    # A blend that would pass through the body: push it out, staying close.
+                    free = {j for tr in tracks for j in self.track_joints[tr]}
+                    soft = self.soft_targets(q[f], free)
+                    q[f] = prev = self.solve(soft, sorted(free), q[f], t).qpos
+                continue
+            free |= {j for tr in tracks for j in self.track_joints[tr]}
+            soft = self.soft_targets(q[f], free)
+            q0 = q[f].copy()
+            if prev is not None:
+                dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
+                q0[dofs] = prev[dofs]
+            res = self.solve(cons + soft, sorted(free), q0, t)
+            q[f] = res.qpos
+            prev = res.qpos
+        return q
+
+    def transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """(T, 3) path points of a transpath for every frame (valid inside its interval)."""
+        site = self.comp.site(b.transpath_site)
+        sid = self.solver.site_id(site)
+        d = self.solver.data
+        fs = min(int(np.searchsorted(times, b.start - 1e-9)), len(times) - 1)
+        fe = min(int(np.searchsorted(times, b.end - 1e-9)), len(times) - 1)
+        ends = []
+        for f in (fs, fe):
+            d.qpos[:] = q[f]
+            mujoco.mj_kinematics(self.m, d)
+            ends.append(d.site_xpos[sid].copy())
+        x0, x1 = ends
+        u = minjerk((times - b.start) / b.duration)
+        return path_points(b.route, x0, x1, u, self.s, q[fs])
+
+    def flat_transpaths(self, q, times):
+        """Flattened mode: a transpath adds keyframes along its path (the 2018 method)."""
+        for b in (b for b in self.blocks if b.kind is sc.BlockKind.TRANSPATH):
+            pts = self.transpath_points(b, q, times)
+            sel = np.flatnonzero((times >= b.start) & (times < b.end))
+            if not sel.size:
+                continue
+            site = self.comp.site(b.transpath_site)
+            kf = sel[np.linspace(0, sel.size - 1, min(6, sel.size)).round().astype(int)]
+            free = tuple(j for t in self.track_joints for j in self.track_joints[t]
+                         if t not in ("face", "eyes"))  # fmt: skip
+            kq = {}
+            for f in kf:
+                soft = self.soft_targets(q[f], free)
+                cons = [cn.Place(site, Const(tuple(pts[f])), 1e-3, f"{b.path}@path")]
+                kq[f] = self.solve(cons + soft, free, q[f], times[f]).qpos
+            # Whole-body blend between consecutive transpath keyframes.
+            fr = sorted(kq)
+            for f0, f1 in zip(fr[:-1], fr[1:]):
+                for f in range(f0, f1):
+                    u = minjerk((f - f0) / (f1 - f0))
+                    q[f] = kq[f0] + u * (kq[f1] - kq[f0])
+            q[fr[-1]] = kq[fr[-1]]
+        return q
+
+    def trills(self, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Pass 3: every trill added on top of the frames ``q`` (T, nq), in place."""
+        d = self.solver.data
+        m = self.m
+        jac = np.empty((3, m.nv))
+        for b in self.blocks:
+            if b.kind is not sc.BlockKind.CSTR:
+                continue
+            for c in b.constraints:
+                if not isinstance(c, sc.Trill):
+                    continue
+                dofs = np.concatenate([self.track_dofs[t] for t in sorted(self.comp.tracks_of(c))])
+                sel = np.flatnonzero((times >= b.start) & (times < b.end))
+                ramp = np.minimum(1.0, np.minimum(times[sel] - b.start, b.end - times[sel]) / 0.05)
+                for f, env in zip(sel, ramp):
+                    d.qpos[:] = q[f]
+                    mujoco.mj_kinematics(m, d)
+                    mujoco.mj_comPos(m, d)
+                    v = self.solver.kinematics().value(compile_vector(c.vector, self.smap))
+                    v = v / np.linalg.norm(v)
+                    a = c.amplitude * env * np.sin(2 * np.pi * c.frequency * (times[f] - b.start))
+                    if c.site is not None:
+                        mujoco.mj_jacSite(m, d, jac, None, self.solver.site_id(self.comp.site(c.site)))
+                    else:
+                        mujoco.mj_jacBody(m, d, None, jac, self.solver.body_id(c.bone.model_body(self.smap)))
+                    J = jac[:, dofs]
+                    dq = J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), a * v)
+                    q[f, dofs] = np.clip(q[f, dofs] + dq, self.solver.lower[dofs],
+                                         self.solver.upper[dofs])  # fmt: skip
+                    if self.penetrates(q[f], times[f]):  # the shake must not go through
+                        joints = {j for t in self.comp.tracks_of(c) for j in self.track_joints[t]}
+                        q[f] = self.solve(self.soft_targets(q[f], joints), sorted(joints), q[f],
+                                           times[f]).qpos  # fmt: skip
+        return q
+
+
+def path_points(route, x0, x1, u, sched: Schedule, q_start) -> np.ndarray:
+    """Points (len(u), 3) of a transpath route from ``x0`` to ``x1`` at parameters ``u``."""
+    u = np.asarray(u)[:, None]
+    if isinstance(route, sc.Straight):
+        return x0 + u * (x1 - x0)
+    d = sched.solver.data
+    d.qpos[:] = q_start
+    mujoco.mj_kinematics(sched.m, d)
+    kin, smap = sched.solver.kinematics(), sched.smap
+    if isinstance(route, sc.Arc):
+        bulge = kin.value(compile_vector(route.bulge, smap))
+        mid = 0.5 * (x0 + x1) + bulge
+        return arc_through(x0, mid, x1, u[:, 0])
+    if isinstance(route, sc.Circle):
+        c = kin.value(compile_point(route.center, smap))
+        r0, r1 = x0 - c, x1 - c
+        if route.normal is not None:
+            n = kin.value(compile_vector(route.normal, smap))
+        else:
+            n = np.cross(r0, r1)
+        n = n / max(np.linalg.norm(n), 1e-12)
+        e1 = r0 - n * (r0 @ n)
+        e2 = np.cross(n, e1)
+        rad0 = np.linalg.norm(e1)
+        e1, e2 = e1 / rad0, e2 / np.linalg.norm(e2)
+        p1 = r1 - n * (r1 @ n)
+        end_angle = np.arctan2(p1 @ e2, p1 @ e1) % (2 * np.pi)
+        total = 2 * np.pi * route.turns + (end_angle if np.linalg.norm(p1) > 1e-9 else 0.0)
+        if end_angle < 1e-6:
+            total = 2 * np.pi * route.turns
+        ang = u[:, 0] * total
+        rad = rad0 + u[:, 0] * (np.linalg.norm(p1) - rad0)
+        h = (r0 @ n) + u[:, 0] * ((r1 @ n) - (r0 @ n))
+        return c + rad[:, None] * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2) + h[:, None] * n
+    raise TypeError(route)
+
+
+def arc_through(a, b, c, u) -> np.ndarray:
+    """Points of the circular arc from ``a`` through ``b`` to ``c`` at fractions ``u``."""
+    ab, ac = b - a, c - a
+    n = np.cross(ab, ac)
+    if np.linalg.norm(n) < 1e-12:
+        return a + u[:, None] * (c - a)
+    # Circumcentre of the triangle.
+    cc = a + (np.cross(n, ab) * (ac @ ac) + np.cross(ac, n) * (ab @ ab)) / (2 * (n @ n))
+    n = n / np.linalg.norm(n)
+    e1 = (a - cc) / np.linalg.norm(a - cc)
+    e2 = np.cross(n, e1)
+    r = np.linalg.norm(a - cc)
+
+    def ang(p):
+        v = p - cc
+        return np.arctan2(v @ e2, v @ e1) % (2 * np.pi)
+
+    total = ang(c)  # a is at angle 0; going through b in the +n sense reaches c at ang(c)
+    return cc + r * (np.cos(u * total)[:, None] * e1 + np.sin(u * total)[:, None] * e2)

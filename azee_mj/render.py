@@ -1,0 +1,323 @@
+"""Offscreen rendering of a :class:`~azee_mj.markers.Clip`: frames with ``mujoco.Renderer``
+on ``scene.xml``, encoded to video (.mp4), an animated .gif, a still or a contact sheet of
+the key postures (.png).
+
+Importing this module needs no display: the GL backend is chosen by :func:`gl_backend` the
+first time something renders. Units: metres, seconds.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from azee_mj import score as sc
+from azee_mj.errors import AzeeError
+from azee_mj.markers import Clip, Targets, add_markers, markers
+from azee_mj.model import SCENE_PATH
+
+#: The fixed cameras of ``scene.xml``, in the order ``C`` cycles them in the viewer.
+CAMERAS = ("front", "side", "three-quarter", "top")
+#: Backends tried, in order, when ``MUJOCO_GL`` is unset.
+GL_BACKENDS = ("egl", "osmesa")
+#: Default image size [px].
+DEFAULT_SIZE = (640, 480)
+#: Shadow map size of offscreen renders [px].
+SHADOW_SIZE = 1024
+
+RENDER_HINT = "pip install azee_mj[render]"
+
+
+# ---------------------------------------------------------------------------------------
+# GL backend
+# ---------------------------------------------------------------------------------------
+
+_BACKEND: str | None = None
+_PROBE = (
+    "import os, sys; os.environ['MUJOCO_GL'] = sys.argv[1]; import mujoco; "
+    "c = mujoco.GLContext(32, 32); c.make_current(); "
+    "m = mujoco.MjModel.from_xml_string('<mujoco/>'); mujoco.MjrContext(m, 150); c.free()"
+)
+
+
+def _probe(backend: str) -> bool:
+    env = {k: v for k, v in os.environ.items() if k != "PYOPENGL_PLATFORM"}
+    try:
+        r = subprocess.run([sys.executable, "-c", _PROBE, backend], env=env, check=False,
+                           capture_output=True, timeout=60)  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return r.returncode == 0
+
+
+def gl_backend(probe: Callable[[str], bool] | None = None) -> str:
+    """The OpenGL backend for offscreen rendering, set up for ``mujoco.Renderer``.
+
+    ``MUJOCO_GL`` is respected when set; otherwise ``egl`` then ``osmesa`` are tried (each
+    in a short subprocess, since a failed attempt cannot be undone in this one) and the
+    first that works is written to ``MUJOCO_GL``. Raises :class:`AzeeError` when none does.
+    The choice is made once per process; a ``probe`` (backend -> works?) replaces the
+    subprocess test and forces a new choice.
+    """
+    global _BACKEND
+    if _BACKEND is not None and probe is None:
+        return _BACKEND
+    env = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if env:
+        backend = env
+    else:
+        backend = next((b for b in GL_BACKENDS if (probe or _probe)(b)), "")
+        if not backend:
+            raise AzeeError(
+                "no OpenGL backend for offscreen rendering: tried MUJOCO_GL=egl (needs "
+                "libegl1) and MUJOCO_GL=osmesa (needs libosmesa6); install one, or set "
+                "MUJOCO_GL=glfw with a display"
+            )
+        os.environ["MUJOCO_GL"] = backend
+    # mujoco chose its GLContext when it was imported; point it at this backend.
+    from mujoco.rendering.classic import gl_context
+
+    try:
+        if backend == "egl":
+            from mujoco.egl import GLContext
+        elif backend == "osmesa":
+            from mujoco.osmesa import GLContext
+        elif backend in ("glfw", "glx"):
+            from mujoco.glfw import GLContext
+        else:
+            raise AzeeError(f"MUJOCO_GL={backend!r} is not a backend; use egl, osmesa or glfw")
+    except ImportError as e:
+        raise AzeeError(f"MUJOCO_GL={backend}: cannot load the backend ({e})") from None
+    gl_context.GLContext = GLContext
+    _BACKEND = backend
+    return backend
+
+
+# ---------------------------------------------------------------------------------------
+# Offscreen rendering
+# ---------------------------------------------------------------------------------------
+
+
+def scene_model(width: int = 0, height: int = 0) -> mujoco.MjModel:
+    """The signer on its floor with lights and cameras, with room for a ``width`` x
+    ``height`` offscreen buffer."""
+    m = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
+    m.vis.global_.offwidth = max(m.vis.global_.offwidth, width)
+    m.vis.global_.offheight = max(m.vis.global_.offheight, height)
+    # A 1024 shadow map looks the same at these sizes and renders 2x faster in software GL.
+    m.vis.quality.shadowsize = min(m.vis.quality.shadowsize, SHADOW_SIZE)
+    return m
+
+
+def camera_id(model: mujoco.MjModel, camera: str) -> int:
+    cid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+    if cid < 0:
+        raise AzeeError(f"--camera: unknown camera {camera!r}; valid: {', '.join(CAMERAS)}")
+    return cid
+
+
+def resample(clip: Clip, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times ``k / fps`` over the clip and their postures (T', nq), linearly interpolated."""
+    n = math.floor(clip.duration * fps + 1e-9) + 1
+    t = np.arange(n) / fps
+    if abs(fps - clip.fps) < 1e-9:
+        return t, clip.qpos[:n]
+    x = np.clip(t * clip.fps, 0, len(clip.time) - 1)
+    i0 = np.floor(x).astype(int)
+    i1 = np.minimum(i0 + 1, len(clip.time) - 1)
+    w = (x - i0)[:, None]
+    return t, (1 - w) * clip.qpos[i0] + w * clip.qpos[i1]
+
+
+class FrameRenderer:
+    """Renders postures of the signer offscreen from one camera (a ``mujoco.Renderer`` on
+    ``scene.xml``); ``targets`` adds the constraint markers. Use as a context manager."""
+
+    def __init__(self, clip: Clip, *, camera: str = "front", size=DEFAULT_SIZE,
+                 targets: bool = False):  # fmt: skip
+        gl_backend()
+        w, h = size
+        self.model = scene_model(w, h)
+        self.cam = camera_id(self.model, camera)
+        self.data = mujoco.MjData(self.model)
+        self.clip = clip
+        self.targets = Targets(clip.score) if targets and clip.score is not None else None
+        self.decorate = targets
+        try:
+            self.r = mujoco.Renderer(self.model, height=h, width=w)
+        except Exception as e:  # noqa: BLE001  (GL errors come in several types)
+            raise AzeeError(f"offscreen rendering failed with MUJOCO_GL={_BACKEND}: {e}") from None
+
+    def render(self, q: np.ndarray, frame: int | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 image of posture ``q``; markers of clip frame ``frame`` if any."""
+        d = self.data
+        items = []
+        if self.decorate and frame is not None:
+            items = markers(self.model, d, self.clip, frame, self.targets)
+        d.qpos[:] = q
+        mujoco.mj_forward(self.model, d)
+        self.r.update_scene(d, camera=self.cam)
+        if items:
+            add_markers(self.r.scene, items)
+        return self.r.render().copy()
+
+    def close(self) -> None:
+        self.r.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def key_frames(clip: Clip) -> list[tuple[str, int]]:
+    """(label, frame) of the key postures: the middle of each cstr block in time order
+    (blocks with the same middle frame share one, their names joined), or without a score
+    six evenly spaced frames labelled by their time."""
+    if clip.score is not None:
+        root = clip.score.root.path
+        blocks = [b for b in clip.score.blocks() if b.kind is sc.BlockKind.CSTR]
+        blocks.sort(key=lambda b: (0.5 * (b.start + b.end), b.path))
+        byframe: dict[int, list[str]] = {}  # blocks sharing a middle frame share a tile
+        for b in blocks:
+            name = b.path[len(root) + 1:] if b.path.startswith(root + ".") else b.path
+            byframe.setdefault(clip.frame_at(0.5 * (b.start + b.end)), []).append(name)
+        if byframe:
+            return [(", ".join(names), f) for f, names in byframe.items()]
+    idx = np.linspace(0, len(clip.time) - 1, min(6, len(clip.time))).round().astype(int)
+    return [(f"t = {clip.time[i]:.2f} s", int(i)) for i in idx]
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``WxH`` -> (W, H); AzeeError naming ``--size`` otherwise."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise AzeeError(f"--size: expected WxH in pixels (e.g. 640x480), got {text!r}") from None
+    if not (16 <= w <= 4096 and 16 <= h <= 4096):
+        raise AzeeError(f"--size: width and height must be 16..4096 pixels, got {text!r}")
+    return w, h
+
+
+OUTPUT_SUFFIXES = (".mp4", ".gif", ".png")
+
+
+def check_render_options(out, size, fps, time) -> None:
+    """Raise :class:`AzeeError` for an output or option render cannot honour."""
+    suffix = Path(out).suffix.lower()
+    if suffix not in OUTPUT_SUFFIXES:
+        raise AzeeError(f"-o: unknown output type {Path(out).suffix or '(none)'!r} of {out}; "
+                        f"valid: {', '.join(OUTPUT_SUFFIXES)}")  # fmt: skip
+    if suffix == ".mp4" and (size[0] % 2 or size[1] % 2):
+        raise AzeeError(f"--size: an .mp4 needs an even width and height, got "
+                        f"{size[0]}x{size[1]}")  # fmt: skip
+    if fps is not None and not (0 < fps <= 240):
+        raise AzeeError(f"--fps: must be in (0, 240], got {fps:g}")
+    if time is not None and suffix != ".png":
+        raise AzeeError(f"--time: only for a .png still, not {suffix}")
+
+
+def _need(module: str):
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise AzeeError(f"rendering needs the package {module.split('.')[0]!r}: "
+                        f"{RENDER_HINT}") from None  # fmt: skip
+
+
+def render(
+    clip: Clip,
+    out: str | os.PathLike,
+    *,
+    camera: str = "front",
+    size: tuple[int, int] = DEFAULT_SIZE,
+    fps: float | None = None,
+    time: float | None = None,
+    targets: bool = False,
+    progress: Callable[[float], None] | None = None,
+) -> Path:
+    """Render ``clip`` to ``out`` by its suffix, atomically.
+
+    ``.mp4`` / ``.gif``: the video at ``fps`` (default: the clip's). ``.png``: the frame at
+    ``time`` [s], or without it a contact sheet of :func:`key_frames`, labelled.
+    Raises :class:`AzeeError` for bad options (before anything is written).
+    """
+    from azee_mj.files import atomic_path
+
+    out = Path(out)
+    check_render_options(out, size, fps, time)
+    if camera not in CAMERAS:
+        raise AzeeError(f"--camera: unknown camera {camera!r}; valid: {', '.join(CAMERAS)}")
+    if time is not None and not (-1e-9 <= time <= clip.duration + 1e-9):
+        raise AzeeError(f"--time: {time:g} s is outside the rollout, which spans "
+                        f"0..{clip.duration:g} s")  # fmt: skip
+    suffix = out.suffix.lower()
+    tick = progress or (lambda f: None)
+    if suffix == ".mp4":
+        _need("imageio_ffmpeg")
+    imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
+    pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
+    with FrameRenderer(clip, camera=camera, size=size, targets=targets) as fr:
+        if suffix == ".png":
+            if time is not None:
+                f = clip.frame_at(time)
+                img = pil.fromarray(fr.render(clip.qpos[f], f))
+            else:
+                img = _contact_sheet(fr, clip, size, tick)
+            with atomic_path(out) as tmp:
+                img.save(tmp, format="PNG", optimize=True)
+            tick(1.0)
+            return out
+        vfps = float(fps or clip.fps)
+        times, qs = resample(clip, vfps)
+        with atomic_path(out) as tmp:
+            if suffix == ".mp4":
+                w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264",
+                                       quality=7, macro_block_size=2,
+                                       ffmpeg_log_level="error")  # fmt: skip
+                try:
+                    for k, q in enumerate(qs):
+                        w.append_data(fr.render(q, clip.frame_at(times[k])))
+                        tick((k + 1) / len(qs))
+                finally:
+                    w.close()
+            else:
+                frames = []
+                quantize = pil.Quantize.MEDIANCUT
+                for k, q in enumerate(qs):
+                    im = pil.fromarray(fr.render(q, clip.frame_at(times[k])))
+                    frames.append(im.quantize(colors=128, method=quantize))
+                    tick((k + 1) / len(qs))
+                frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
+                               duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
+    return out
+
+
+def _contact_sheet(fr: FrameRenderer, clip: Clip, size, tick):
+    from PIL import Image, ImageDraw
+
+    keys = key_frames(clip)
+    w, h = size
+    cols = len(keys) if len(keys) <= 4 else math.ceil(math.sqrt(len(keys)))
+    rows = math.ceil(len(keys) / cols)
+    sheet = Image.new("RGB", (cols * w, rows * h), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    for k, (label, f) in enumerate(keys):
+        x, y = (k % cols) * w, (k // cols) * h
+        sheet.paste(Image.fromarray(fr.render(clip.qpos[f], f)), (x, y))
+        text = f"{label}  t={clip.time[f]:.2f} s"
+        draw.rectangle((x, y, x + 8 + 7 * len(text), y + 18), fill=(0, 0, 0))
+        draw.text((x + 4, y + 3), text, fill=(255, 255, 255))
+        tick((k + 1) / len(keys))
+    return sheet

@@ -1,0 +1,313 @@
+"""A score laid on a signer, before any motion: which tracks (articulator groups: ``spine``,
+``head``, ``eyes``, ``face``, ``arm_X``, ``hand_X``) each constraint drives, the intervals
+blocks drive them, the segment boundaries and the contact windows. Also the solver for a
+signer (:func:`make_solver`, with the AZee joint weights).
+
+Units: seconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+
+import mujoco
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+from azee_mj import score as sc
+from azee_mj.kinematics import compile_point, compile_vector
+from azee_mj.model import MODEL_PATH
+from azee_mj.sites import DEFAULT_MAP, SignerMap
+
+#: How dear moving a track's joints is, relative to an arm joint (1): the trunk and neck are
+#: dearer to move than the arms, and a clavicle joint costs CLAVICLE_WEIGHT.
+TRACK_WEIGHTS = {"spine": 8.0, "head": 4.0}
+CLAVICLE_WEIGHT = 3.0
+
+
+def joint_weights(signer_map: SignerMap) -> dict[str, float]:
+    """Joint name -> weight for :class:`~azee_mj.ik.Solver` from the tracks of ``signer_map``."""
+    return {j: TRACK_WEIGHTS.get(track, CLAVICLE_WEIGHT if "clav" in j else 1.0)
+            for track, joints in signer_map.tracks.items() for j in joints}  # fmt: skip
+
+
+def make_solver(
+    model: str | os.PathLike | mujoco.MjSpec | None = None,
+    signer_map: SignerMap | None = None,
+    **options,
+) -> ik.Solver:
+    """An :class:`~azee_mj.ik.Solver` for a signer: ``model`` (default the bundled one) with
+    the joint weights of ``signer_map`` (default :data:`~azee_mj.sites.DEFAULT_MAP`);
+    ``options`` go to the solver (``seed``, ``max_iter``, ``on_solve``, ...)."""
+    smap = signer_map or DEFAULT_MAP
+    return ik.Solver(MODEL_PATH if model is None else model, joint_weights=joint_weights(smap),
+                     **options)  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------
+# Score -> IK constraints, and the tracks each drives
+# ---------------------------------------------------------------------------------------
+
+
+class Compiler:
+    """Translates score records into :mod:`azee_mj.constraints` on one signer, and names the
+    tracks each drives."""
+
+    def __init__(self, model: mujoco.MjModel, smap: SignerMap):
+        self.m, self.smap = model, smap
+        self.joint_track: dict[int, str] = {}
+        for track, joints in smap.tracks.items():
+            for j in joints:
+                self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
+
+    # expressions
+    def site(self, ref: sc.SiteRef) -> str:
+        return ref.model_site(self.smap)
+
+    # constraints
+    def constraint(self, c, label: str):
+        """The IK constraint of a place / orient / look, or None for morph / trill."""
+        if isinstance(c, sc.Place):
+            return cn.Place(self.site(c.site), compile_point(c.at, self.smap), c.tol, label)
+        if isinstance(c, sc.Orient):
+            b = c.bone.bone_map(self.smap)
+            local = b.dir if c.axis is sc.Axis.DIR else b.nrm
+            return cn.Orient(b.body, local, c.rel, compile_vector(c.vector, self.smap), c.tol,
+                             label)  # fmt: skip
+        if isinstance(c, sc.Look):
+            eyes = tuple((self.smap.bones[e].body, self.smap.bones[e].dir)
+                         for e in ("eye_L", "eye_R"))  # fmt: skip
+            return cn.Look(eyes, compile_point(c.at, self.smap), np.deg2rad(1.0), label)
+        return None
+
+    def morph_changes(self, c: sc.MorphC) -> dict[str, float]:
+        return {j: c.weight * v for j, v in self.smap.morphs[c.id].joint_changes(c.side).items()}
+
+    # tracks
+    def body_tracks(self, body: int, own_only: bool) -> set[str]:
+        """Tracks owning the joints of ``body`` (and, unless ``own_only``, its ancestors')."""
+        out: set[str] = set()
+        while body > 0:
+            for j in range(self.m.body_jntadr[body],
+                           self.m.body_jntadr[body] + self.m.body_jntnum[body]):  # fmt: skip
+                if j in self.joint_track:
+                    out.add(self.joint_track[j])
+            if own_only and out:
+                return out
+            body = int(self.m.body_parentid[body])
+        return out
+
+    def site_tracks(self, site: str) -> set[str]:
+        """A placed site moves its limb: the tracks above it, without hands (shaped by
+        morphs) and without the spine unless nothing else can move it."""
+        sid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, site)
+        tracks = self.body_tracks(int(self.m.site_bodyid[sid]), own_only=False)
+        limb = {t for t in tracks if not t.startswith(("hand", "spine"))}
+        return limb or tracks
+
+    def partner_sites(self, c) -> tuple[str, ...]:
+        """Model sites of the other part when placement ``c`` brings two parts together.
+
+        A placement at a bare body site is a contact: both parts move to meet. A placement
+        at a point that reads sites of an arm or hand (``@I_TIP(w)`` translated, the middle
+        of two fingertips) also moves that arm, since the point rides on it; a point that
+        reads only the head or trunk is a location that stays where the body holds it.
+        """
+        if not isinstance(c, sc.Place):
+            return ()
+        if isinstance(c.at, sc.PSite):
+            return () if c.at.ref.locus else (self.site(c.at.ref),)
+        own = self.site_tracks(self.site(c.site))
+        sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
+        return tuple(s for s in sites
+                     if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+
+    def tracks_of(self, c) -> set[str]:
+        """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
+        if isinstance(c, sc.Place):
+            out = self.site_tracks(self.site(c.site))
+            for s in self.partner_sites(c):  # both parts move
+                out |= self.site_tracks(s)
+            return out
+        if isinstance(c, sc.Orient):
+            body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
+            return self.body_tracks(body, own_only=True)
+        if isinstance(c, sc.MorphC):
+            out = set()
+            for j in self.morph_changes(c):
+                out.add(self.joint_track[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, j)])
+            return out
+        if isinstance(c, sc.Look):
+            return {"eyes", "head"}
+        if isinstance(c, sc.Trill):
+            if c.site is not None:
+                return self.site_tracks(self.site(c.site))
+            body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
+            return self.body_tracks(body, own_only=True)
+        raise TypeError(c)
+
+
+def constraint_tracks(c, model: mujoco.MjModel | None = None, signer_map: SignerMap = DEFAULT_MAP):
+    """The tracks a score constraint drives (a contact drives both sides it joins)."""
+    from azee_mj.model import load_model
+
+    return Compiler(model or load_model(), signer_map).tracks_of(c)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackInterval:
+    """Track ``track`` driven by block ``block`` over ``[start, end)`` [s]."""
+
+    track: str
+    block: str
+    start: float
+    end: float
+
+
+@dataclasses.dataclass(frozen=True)
+class ContactWindow:
+    """A contact constraint's interval ``[start, end)`` [s] and the two model bodies it
+    brings together (allowed to touch then)."""
+
+    start: float
+    end: float
+    body: int
+    other: int
+
+
+@dataclasses.dataclass(frozen=True)
+class DrivenConstraint:
+    """A score constraint of a cstr block: its solver constraint (None for a morph or a
+    trill), the joint changes of a morph, the tracks it drives, and the score record."""
+
+    con: cn.Constraint | None
+    morph: dict[str, float]
+    tracks: set[str]
+    source: sc.Constraint
+
+
+class Schedule:
+    """A score laid on a signer: the tracks each block drives, the segments' boundaries and
+    the contact windows (no solving)."""
+
+    def __init__(self, score: sc.Score, solver: ik.Solver, signer_map: SignerMap = DEFAULT_MAP):
+        self.score, self.solver = score, solver
+        self.m = solver.model
+        self.smap = signer_map
+        self.comp = Compiler(self.m, self.smap)
+        self.track_joints = {t: tuple(js) for t, js in self.smap.tracks.items()}
+        self.track_dofs = {
+            t: np.array([self.m.jnt_dofadr[solver.joint_id(j)] for j in js], int)
+            for t, js in self.track_joints.items()
+        }
+        self.home = solver.natural.copy()
+        self.blocks = [b for b in score.blocks()]
+        self.by_path = {b.path: b for b in self.blocks}
+        self.contacts = self._contact_windows()
+        self._moved_cache: dict = {}
+        self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
+                           for b in range(self.m.nbody)]  # fmt: skip
+
+    def _contact_windows(self) -> list[ContactWindow]:
+        """The window of every contact constraint of the score."""
+        out = []
+        for b in self.blocks:
+            for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
+                partners = self.comp.partner_sites(c)
+                if partners:
+                    body = int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
+                for s in partners:
+                    other = int(self.m.site_bodyid[self.solver.site_id(s)])
+                    out.append(ContactWindow(b.start, b.end, body, other))
+        return out
+
+    def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
+        """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
+        pairs = set()
+        for w in self.contacts:
+            if w.start - 1e-9 <= t < w.end:
+                pairs |= {(w.body, w.other), (w.other, w.body)}
+        return frozenset(pairs)
+
+    def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
+        """What each constraint of a cstr block drives, in order."""
+        out = []
+        for c in b.constraints:
+            label = f"{b.path}#{c.index}"
+            tracks = self.comp.tracks_of(c)
+            if isinstance(c, sc.MorphC):
+                out.append(DrivenConstraint(None, self.comp.morph_changes(c), tracks, c))
+            elif isinstance(c, sc.Trill):
+                out.append(DrivenConstraint(None, {}, tracks, c))
+            else:
+                out.append(DrivenConstraint(self.comp.constraint(c, label), {}, tracks, c))
+        return out
+
+    def intervals(self) -> dict[str, tuple[TrackInterval, ...]]:
+        """Per track, the intervals blocks drive it, in time order."""
+        sched: dict[str, list[TrackInterval]] = {t: [] for t in self.track_joints}
+        for b in self.blocks:
+            if b.kind is sc.BlockKind.CSTR:
+                tracks = set().union(*(self.comp.tracks_of(c) for c in b.constraints))
+            elif b.kind is sc.BlockKind.HOLD:
+                tracks = self.held_tracks(b)
+            elif b.kind is sc.BlockKind.TRANSPATH:
+                tracks = self.comp.site_tracks(self.comp.site(b.transpath_site))
+            else:
+                continue
+            for t in tracks:
+                sched[t].append(TrackInterval(t, b.path, b.start, b.end))
+        return {t: tuple(sorted(v, key=lambda i: (i.start, i.end))) for t, v in sched.items()}
+
+    def held_tracks(self, hold: sc.Block) -> set[str]:
+        """The tracks the block a hold keeps drove (nested holds included)."""
+        held = self.by_path[hold.hold_of]
+        out: set[str] = set()
+        for b in held.blocks():
+            if b.kind is sc.BlockKind.CSTR:
+                for c in b.constraints:
+                    if not isinstance(c, sc.Trill):
+                        out |= self.comp.tracks_of(c)
+            elif b.kind is sc.BlockKind.HOLD:
+                out |= self.held_tracks(b)
+        return out
+
+    def events(self) -> list[float]:
+        """Block boundaries [s] that cut the score into segments, in order."""
+        ts = {0.0, self.score.duration}
+        for b in self.blocks:
+            if b.kind in (sc.BlockKind.CSTR, sc.BlockKind.HOLD):
+                ts.update((b.start, b.end))
+        return sorted(t for t in ts if 0.0 <= t <= self.score.duration)
+
+    def moved_by(self, c) -> set[str]:
+        """Tracks whose joints move a body that IK constraint ``c`` names."""
+        if c not in self._moved_cache:
+            bodies = self.solver.bodies_of(c)
+            self._moved_cache[c] = set().union(
+                *(self.comp.body_tracks(b, own_only=False) for b in bodies))
+        return self._moved_cache[c]
+
+
+def schedule(score: sc.Score | str, solver: ik.Solver | None = None
+             ) -> dict[str, tuple[TrackInterval, ...]]:
+    """Per track, the intervals blocks drive it, without solving anything."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    return Schedule(score, solver or make_solver()).intervals()
+
+
+def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
+                  solver: ik.Solver | None = None) -> dict[int, frozenset[tuple[str, str]]]:
+    """Frame -> body-name pairs that a contact constraint active then brings together."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    r = Schedule(score, solver or make_solver())
+    out: dict[int, set[tuple[str, str]]] = {}
+    for w in r.contacts:
+        for f in np.flatnonzero((times >= w.start - 1e-9) & (times < w.end)):
+            out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
+    return {f: frozenset(v) for f, v in out.items()}

@@ -1,0 +1,217 @@
+"""The checks of the score loader and the shape of its messages.
+
+A message is one line, ``<dotted block path>: <where in the block>: <what is wrong>; <what is
+valid>`` (see :mod:`azee_mj.score`). :class:`Loc` says where; the functions here check one
+JSON value each and raise :class:`~azee_mj.errors.ScoreError` through ``Loc.fail``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import math
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from azee_mj.errors import ScoreError
+from azee_mj.score.expressions import depends_on_body
+from azee_mj.score.records import (
+    ZERO_NORM,
+    PLiteral,
+    PMid,
+    PointExpr,
+    PTranslate,
+    VAdd,
+    VAxis,
+    VCross,
+    VectorExpr,
+    VFrom,
+    VLiteral,
+    VOpp,
+    VScale,
+)
+from azee_mj.sites import suggest
+
+#: Lists of valid names longer than this are abbreviated in messages.
+MAX_LISTED = 8
+
+
+@dataclasses.dataclass(frozen=True)
+class Loc:
+    """Where in the score: block path ('' above the root) and a place inside it."""
+
+    path: str
+    where: str = ""
+    #: fields not named in messages (a constraint's subject: its ``site`` / ``bone``)
+    unnamed: frozenset[str] = frozenset()
+
+    def fail(
+        self, what: str, valid: str = "", field: str = "", show_field: bool = True
+    ) -> ScoreError:
+        """The error; ``field`` is named in the message unless ``show_field`` is false (the
+        message then names it itself) or it is one of ``unnamed``."""
+        parts = [self.path or "score", self.where]
+        if field and show_field and field not in self.unnamed:
+            parts.append(f"field '{field}'")
+        parts.append(what)
+        message = ": ".join(p for p in parts if p)
+        if valid:
+            message += "; " + valid
+        return ScoreError(message, path=self.path, field=field)
+
+
+def listing(names: Any, quote: bool = False) -> str:
+    """``a, b, c`` or, beyond 8 names, ``a, ..., h, ..., and N more``."""
+    names = [f"'{n}'" if quote else str(n) for n in names]
+    if len(names) <= MAX_LISTED:
+        return ", ".join(names)
+    return ", ".join(names[:MAX_LISTED]) + f", ..., and {len(names) - MAX_LISTED} more"
+
+
+def got(value: Any) -> str:
+    """A value as the user wrote it (JSON), shortened."""
+    try:
+        text = json.dumps(value, ensure_ascii=False)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def num(x: float) -> str:
+    """A number in a message."""
+    return f"{x:.10g}"
+
+
+def is_number(v: Any) -> bool:
+    """A JSON number (not a boolean)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def freeze(v: Any) -> Any:
+    """An immutable copy of a JSON value (mappings become read-only, lists tuples)."""
+    if isinstance(v, Mapping):
+        return MappingProxyType({k: freeze(x) for k, x in v.items()})
+    if isinstance(v, (list, tuple)):
+        return tuple(freeze(x) for x in v)
+    return v
+
+
+def check_keys(
+    loc: Loc,
+    obj: Mapping[str, Any],
+    required: tuple[str, ...],
+    optional: tuple[str, ...],
+    what: str,
+    order: tuple[str, ...] = (),
+    prefix: str = "",
+) -> Mapping[str, Any]:
+    """Check keys (x-* allowed); return the x-* annotations. ``order`` lists the valid
+    keys in the order messages show them (default: required, then optional)."""
+    valid = order or required + optional
+    for key in obj:
+        if isinstance(key, str) and key.startswith("x-"):
+            continue
+        if key not in valid:
+            for_what = f" for {what}" if what else ""
+            raise loc.fail(
+                f"unknown key '{key}'",
+                f"valid keys{for_what} are {', '.join(valid)} (and x-* annotations)"
+                + suggest(str(key), valid),
+                field=f"{prefix}{key}",
+                show_field=False,
+            )
+    for key in required:
+        if key not in obj:
+            raise loc.fail(
+                f"missing field '{key}'",
+                f"{what or 'a score'} needs {', '.join(required)}",
+                field=f"{prefix}{key}",
+                show_field=False,
+            )
+    return freeze({k: v for k, v in obj.items() if isinstance(k, str) and k.startswith("x-")})
+
+
+def number(loc: Loc, field: str, v: Any) -> float:
+    """A finite JSON number."""
+    if not is_number(v):
+        raise loc.fail(f"expected a number, got {got(v)}", field=field)
+    if not math.isfinite(v):
+        raise loc.fail(f"expected a finite number, got {got(v)}", field=field)
+    return float(v)
+
+
+def positive(loc: Loc, field: str, v: Any) -> float:
+    """A finite number > 0."""
+    x = number(loc, field, v)
+    if x <= 0:
+        raise loc.fail(f"must be positive, got {got(v)}", field=field)
+    return x
+
+
+def string(loc: Loc, field: str, v: Any) -> str:
+    """A JSON string."""
+    if not isinstance(v, str):
+        raise loc.fail(f"expected a string, got {got(v)}", field=field)
+    return v
+
+
+def one_of(loc: Loc, field: str, v: Any, cls: type[enum.Enum], noun: str, plural: str) -> Any:
+    """The member of enum ``cls`` whose value is the string ``v``."""
+    s = string(loc, field, v)
+    values = [m.value for m in cls]
+    if s not in values:
+        raise loc.fail(
+            f"unknown {noun} '{s}'",
+            f"valid {plural} are {', '.join(values)}" + suggest(s, values),
+            field=field,
+        )
+    return cls(s)
+
+
+def xyz(loc: Loc, field: str, v: list[Any] | tuple[Any, ...]) -> tuple[float, float, float]:
+    """Three finite numbers."""
+    if len(v) != 3 or not all(is_number(x) for x in v):
+        raise loc.fail(f"expected 3 numbers [x, y, z], got {got(v)}", field=field)
+    if not all(math.isfinite(x) for x in v):
+        raise loc.fail(f"expected finite numbers, got {got(v)}", field=field)
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def nonzero(loc: Loc, field: str, expr: VectorExpr, written: Any, what: str) -> None:
+    """Reject a constant vector of (near) zero length; one that reads the posture is checked
+    when it is evaluated."""
+    if depends_on_body(expr):
+        return
+    if float(np.linalg.norm(_constant(expr))) < ZERO_NORM:
+        raise loc.fail(f"{what} {got(written)}", "give a vector of non-zero length", field=field)
+
+
+def _constant(e: PointExpr | VectorExpr) -> np.ndarray:
+    """The value of an expression that reads no posture (the load-time check only; postures
+    are read by :class:`azee_mj.kinematics.Kinematics`)."""
+    if isinstance(e, (VAxis, VLiteral, PLiteral)):
+        return np.array(e.xyz, dtype=float)
+    if isinstance(e, PTranslate):
+        return _constant(e.p) + _constant(e.v)
+    if isinstance(e, PMid):
+        return 0.5 * (_constant(e.p) + _constant(e.q))
+    if isinstance(e, VOpp):
+        return -_constant(e.v)
+    if isinstance(e, VScale):
+        return e.k * _constant(e.v)
+    if isinstance(e, VAdd):
+        total = np.zeros(3)
+        for term in e.terms:
+            total = total + _constant(term)
+        return total
+    if isinstance(e, VCross):
+        return np.cross(_constant(e.a), _constant(e.b))
+    if isinstance(e, VFrom):
+        return _constant(e.q) - _constant(e.p)
+    v = _constant(e.v)  # VUnit
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0.0 else np.zeros(3)

@@ -27,7 +27,9 @@ def test_version(capsys):
 def test_sites_json_is_one_object_matching_the_map(capsys):
     assert main(["sites", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"sites", "bones", "loci", "morphs"}
+    assert set(out) == {"sites", "bones", "loci", "morphs", "normals", "interior"}
+    assert out["normals"]["H_BACK_R"] == [0.0, -1.0, 0.0]
+    assert out["interior"] == ["TO", "WR_L", "WR_R"]
     assert out["sites"] == dict(DEFAULT_MAP.sites)
     assert out["loci"] == {"ssp": "ssp", "Rssp": "Rssp", "Lssp": "Lssp"}
     assert out["morphs"] == list(DEFAULT_MAP.morphs)

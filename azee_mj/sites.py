@@ -295,12 +295,13 @@ def _finger_joints(fingers=FINGERS) -> list[str]:
 #: (1_flex, 1_spread, 2_flex, 3_flex).
 _STRAIGHT = (0.0, 0.0, 0.0, 0.0)
 _CLOSED = (1.5, 0.0, 1.65, 1.0)  # curled into the palm, as the fist morph
-_T_SIDE = (0.2, 0.1, 0.0, 0.0)  # along the side of the index
-_T_ACROSS = (0.0, 0.1, 0.8, 1.2)  # over the closed fingers' middle phalanges
+_T_SIDE = (0.0, 0.0, THUMB_FLAT_MCP, 0.0)  # adducted along the index, as the flat morph
+_THUMB = ("1_flex", "1_abd", "2_flex", "3_flex")
+_T_ACROSS = tuple(FIST_THUMB[f"thumb_{{X}}_{j}"] for j in _THUMB)  # over the closed fingers
 _T_OUT = (-0.4, 0.2, 0.0, 0.0)  # away from the palm, in its plane
-_T_UP = (-0.15, 0.0, 0.0, 0.0)  # straight up from a fist
-_T_IN = (0.6, 0.3, 0.6, 0.6)  # folded across the palm
-_T_OPP = (0.1, 0.3, 0.5, 0.3)  # opposed: its tip on the curved index's tip
+_T_UP = tuple(THUMB_UP[f"thumb_{{X}}_{j}"] for j in _THUMB)  # straight up from a fist
+_T_IN = _T_ACROSS  # folded across the palm
+_T_OPP = (-0.3, 1.0, 0.3, 1.2)  # opposed: its tip 3 mm from the curved index's tip
 _CURVED = (1.0, 0.0, 1.1, 0.7)  # curved to meet the opposed thumb
 
 
@@ -318,7 +319,7 @@ def _sp(f, spread):
 HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
     "flat": _hs(_T_SIDE, _STRAIGHT, _STRAIGHT, _STRAIGHT, _STRAIGHT),
     "bent": _hs(_T_SIDE, *[(1.3, 0.0, 0.0, 0.0)] * 4),
-    "a": _hs((0.12, 0.0, 0.1, 0.0), *[_CLOSED] * 4),
+    "a": _hs(_T_SIDE, *[_CLOSED] * 4),
     "s": _hs(_T_ACROSS, *[_CLOSED] * 4),
     "index": _hs(_T_ACROSS, _STRAIGHT, _CLOSED, _CLOSED, _CLOSED),
     "v": _hs(_T_ACROSS, _sp(_STRAIGHT, 0.25), _sp(_STRAIGHT, -0.15), _CLOSED, _CLOSED),
@@ -340,7 +341,7 @@ HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
     "thumb": _hs(_T_UP, *[_CLOSED] * 4),
     "c": _hs((0.0, 0.35, 0.1, 0.1), *[(0.6, 0.0, 0.7, 0.4)] * 4),
     "o": _hs(_T_OPP, *[_CURVED] * 4),
-    "flat_o": _hs((0.2, 0.25, 0.15, 0.1), *[(1.05, 0.0, 0.35, 0.2)] * 4),
+    "flat_o": _hs((0.4, 0.7, 0.1, -0.05), *[(1.05, 0.0, 0.35, 0.2)] * 4),
     "f": _hs(_T_OPP, _CURVED, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15),
              _sp(_STRAIGHT, -0.3)),
     "pinch": _hs(_T_OPP, _CURVED, _CLOSED, _CLOSED, _CLOSED),
@@ -350,7 +351,7 @@ HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
 def handshape_changes(name: str) -> dict[str, float]:
     """The joint changes [rad] of morph ``hs_<name>`` (joint names with ``{X}``)."""
     thumb, *fingers = HANDSHAPES[name]
-    out = {f"thumb_{{X}}_{j}": v for j, v in zip(("1_flex", "1_abd", "2_flex", "3_flex"), thumb)}
+    out = {f"thumb_{{X}}_{j}": v for j, v in zip(_THUMB, thumb)}
     for f, angles in zip(FINGERS, fingers):
         out.update({f"{f}_{{X}}_{j}": v
                     for j, v in zip(("1_flex", "1_spread", "2_flex", "3_flex"), angles)})

@@ -1,4 +1,5 @@
-"""The ``azee-mj`` command line: catalogue, realize, check, preview, render, report.
+"""The ``azee-mj`` command line: catalogue, compile and rules (the ``.azee`` front end),
+realize, check, preview, render, report.
 
 Bad input prints one message and exits with status 2; a failed check exits with 1.
 """
@@ -6,9 +7,11 @@ Bad input prints one message and exits with status 2; a failed check exits with 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -38,6 +41,72 @@ def _cmd_sites(args) -> int:
     return 0
 
 
+def _score_arg(path: str | None, args) -> str | None:
+    """A score argument as a JSON path: a ``.azee`` expression is compiled (with the
+    command's ``--lexicon`` directories) to ``STEM.json`` in a temporary directory that lives
+    until the command ends; any other path is returned as it is."""
+    if path is None or Path(path).suffix.lower() != ".azee":
+        return path
+    from azee_mj.azee import compile_file, dump_score
+
+    score = compile_file(path, lexicon=getattr(args, "lexicon", None) or ())
+    tmp = Path(args.cleanup.enter_context(tempfile.TemporaryDirectory(prefix="azee-mj-")))
+    out = tmp / f"{Path(path).stem}.json"
+    out.write_text(dump_score(score), encoding="utf-8")
+    return str(out)
+
+
+def _add_lexicon(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--lexicon", action="append", metavar="DIR",
+                   help="a directory of signs (NAME.json, NAME.azee) for .azee input, searched "
+                   "before the bundled lexicon; repeatable")  # fmt: skip
+
+
+def _cmd_compile(args) -> int:
+    from azee_mj.azee import compile_file, compile_text, dump_score
+    from azee_mj.files import atomic_path
+
+    if (args.input is None) == (args.e is None):
+        raise AzeeError("compile: give one EXPR.azee file or -e TEXT")
+    lex = args.lexicon or ()
+    if args.e is not None:
+        score = compile_text(args.e, args.strong_side, lex, file="<-e>")
+    else:
+        score = compile_file(args.input, args.strong_side, lex)
+    text = dump_score(score)
+    if args.output is None:
+        sys.stdout.write(text)
+        return 0
+    out = Path(args.output)
+    with atomic_path(out) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    print(f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
+          file=sys.stderr)  # fmt: skip
+    return 0
+
+
+def _cmd_rules(args) -> int:
+    from azee_mj.azee import RULES, Lexicon, rules_catalogue
+
+    lex = Lexicon(args.lexicon or ())
+    if args.json:
+        print(json.dumps(rules_catalogue(lex)))
+        return 0
+    print(f"{len(RULES)} rules:")
+    for r in RULES:
+        alias = f" (alias {', '.join(':' + a for a in r.aliases)})" if r.aliases else ""
+        print(f"  :{r.name}({r.signature()}){alias}")
+        print(f"      {r.summary}")
+        print(f"      source: {r.source}; approximated: {r.approximated}")
+    names = lex.names()
+    print(f"{len(names)} signs:")
+    for n in names:
+        s = lex.get(n)
+        dur = f"{s.duration:g} s" if s.duration is not None else "expression"
+        print(f"  :{n}({s.signature()}) {dur}" if s.params else f"  :{n} {dur}")
+    return 0
+
+
 def _v(v) -> str:
     return "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"
 
@@ -54,7 +123,7 @@ def _cmd_check(args) -> int:
         from azee_mj.schedule import contact_pairs, make_solver
         from azee_mj.score import load_score
 
-        score, solver = load_score(args.score), make_solver()
+        score, solver = load_score(_score_arg(args.score, args)), make_solver()
         allowed = contact_pairs(score, rollout.time, solver)
     report = check_poses(model, rollout.qpos, allowed=allowed)
     print(summary(report, rollout.fps))
@@ -90,7 +159,7 @@ def _cmd_realize(args) -> int:
 
     if args.fps <= 0:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
-    score = load_score(args.score)
+    score = load_score(_score_arg(args.score, args))
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
     save_rollout(args.output, rollout)
     if args.report:
@@ -141,7 +210,8 @@ def _clip(args, progress: bool = True):
     if args.fps is not None and args.fps <= 0:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
     realize_fps = args.fps or 50.0
-    return load_clip(args.input, score=getattr(args, "score", None), fps=realize_fps,
+    score = _score_arg(getattr(args, "score", None), args)
+    return load_clip(_score_arg(args.input, args), score=score, fps=realize_fps,
                      progress=_Progress("realize") if progress else None)  # fmt: skip
 
 
@@ -171,7 +241,7 @@ def _cmd_render(args) -> int:
 def _cmd_report(args) -> int:
     from azee_mj.report import write_report
 
-    paths = write_report(args.score, args.output, fps=args.fps or 50.0,
+    paths = write_report(_score_arg(args.score, args), args.output, fps=args.fps or 50.0,
                          progress=_Progress("report"))  # fmt: skip
     for p in paths:
         print(f"{p}: written")
@@ -191,8 +261,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=_cmd_sites)
 
+    a = sub.add_parser("compile", help="compile an AZee expression (.azee) to a score")
+    a.add_argument("input", nargs="?", metavar="EXPR.azee", help="the expression file")
+    a.add_argument("-e", metavar="TEXT", help="the expression as text instead of a file")
+    a.add_argument("-o", "--output", help="SCORE.json (default: standard output)")
+    a.add_argument("--strong-side", choices=["R", "L"], default="R",
+                   help="the score's strong side (default R)")
+    _add_lexicon(a)
+    a.set_defaults(func=_cmd_compile)
+
+    u = sub.add_parser("rules", help="list the rules and signs of the .azee front end")
+    u.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_lexicon(u)
+    u.set_defaults(func=_cmd_rules)
+
     r = sub.add_parser("realize", help="realize a score to a rollout .npz")
-    r.add_argument("score", help="SCORE.json (azee-score version 1)")
+    r.add_argument("score", help="SCORE.json (azee-score version 1) or EXPR.azee")
     r.add_argument("-o", "--output", required=True, help="OUT.npz")
     r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
     r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
@@ -200,19 +284,23 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--report", help="also write residuals and timings to REPORT.json")
     r.add_argument("--strict", action="store_true",
                    help="exit 1 if any constraint is not met (default: 0, and say why)")
+    _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)
 
     c = sub.add_parser("check", help="check a rollout for penetrations and range violations")
     c.add_argument("rollout", help="ROLLOUT.npz written by 'azee-mj realize'")
-    c.add_argument("--score", help="the score it realizes: also report constraint residuals")
+    c.add_argument("--score", help="the score it realizes (.json or .azee): also report "
+                   "constraint residuals")
+    _add_lexicon(c)
     c.set_defaults(func=_cmd_check)
 
     from azee_mj.render import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
     v.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json (realized first) or ROLLOUT.npz")
+                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
     v.add_argument("--score", help="the score of a ROLLOUT.npz, to draw its targets")
+    _add_lexicon(v)
     v.add_argument("--fps", type=float, help="frames per second when realizing (default 50)")
     v.add_argument("--camera", choices=CAMERAS, help="start from a fixed camera (default: free)")
     v.add_argument("--no-targets", action="store_true", help="do not draw constraint targets")
@@ -221,8 +309,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
     w.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json (realized first) or ROLLOUT.npz")
+                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
     w.add_argument("-o", "--output", required=True, help="OUT.mp4, OUT.gif or OUT.png")
+    _add_lexicon(w)
     w.add_argument("--score", help="the score of a ROLLOUT.npz (targets, contact sheet labels)")
     w.add_argument("--camera", choices=CAMERAS, default="front", help="camera (default front)")
     w.add_argument("--size", default="640x480", help="WxH in pixels (default 640x480)")
@@ -233,7 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.set_defaults(func=_cmd_render)
 
     h = sub.add_parser("report", help="HTML report (or PNG set) of a score's realization")
-    h.add_argument("score", help="SCORE.json")
+    h.add_argument("score", help="SCORE.json or EXPR.azee")
+    _add_lexicon(h)
     h.add_argument("-o", "--output", required=True, help="REPORT.html, or DIR/ for PNG files")
     h.add_argument("--fps", type=float, help="frames per second (default 50)")
     h.set_defaults(func=_cmd_report)
@@ -245,7 +335,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        with contextlib.ExitStack() as args.cleanup:
+            return args.func(args)
     except AzeeError as e:
         print(f"azee-mj: error: {e}", file=sys.stderr)
         return 2

@@ -37,7 +37,7 @@ def _v(v) -> str:
 
 def _cmd_check(args) -> int:
     from azee_mj.check import check_poses, summary
-    from azee_mj.export import load_rollout_arrays
+    from azee_mj.files import load_rollout_arrays
     from azee_mj.model import load_model
 
     arrays = load_rollout_arrays(args.rollout)
@@ -83,7 +83,7 @@ class _Progress:
 
 
 def _cmd_realize(args) -> int:
-    from azee_mj.export import save_json, save_npz
+    from azee_mj.files import save_json, save_npz
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
 

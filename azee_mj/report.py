@@ -262,7 +262,7 @@ def write_report(
     embedded, or, when ``out`` ends with ``/`` or is a directory, ``timeline.png``,
     ``ik_problems.png``, ``convergence.png`` and ``residuals.png`` in it. Atomic writes;
     returns the paths written."""
-    from azee_mj.export import atomic_path
+    from azee_mj.files import atomic_path
 
     out_s = str(out)
     as_dir = out_s.endswith(("/", os.sep)) or Path(out).is_dir()

@@ -133,7 +133,7 @@ def load_clip(
 ) -> Clip:
     """A clip from ``SCORE.json`` (realized at ``fps``) or ``ROLLOUT.npz`` (with an optional
     ``score`` for targets and the schedule)."""
-    from azee_mj.export import load_rollout_arrays
+    from azee_mj.files import load_rollout_arrays
     from azee_mj.model import load_model
     from azee_mj.timeline import realize
 
@@ -524,7 +524,7 @@ def render(
     ``time`` [s], or without it a contact sheet of :func:`key_frames`, labelled.
     Raises :class:`AzeeError` for bad options (before anything is written).
     """
-    from azee_mj.export import atomic_path
+    from azee_mj.files import atomic_path
 
     out = Path(out)
     check_render_options(out, size, fps, time)

@@ -103,10 +103,14 @@ class Chromium:
     def open(self, url: str, ready: str, timeout: float = 60.0) -> None:
         """Navigate to ``url`` and wait until the expression ``ready`` is true."""
         self.send("Page.navigate", {"url": url}, session=True)
+        self.open_wait(ready, timeout, url)
+
+    def open_wait(self, ready: str, timeout: float = 60.0, where: str = "page") -> None:
+        """Wait until the expression ``ready`` is true in the current page."""
         end = time.monotonic() + timeout
         while not self.evaluate(f"!!({ready})"):
             if time.monotonic() > end:
-                raise TimeoutError(f"{url}: {ready} still false after {timeout} s")
+                raise TimeoutError(f"{where}: {ready} still false after {timeout} s")
             time.sleep(0.05)
 
     def errors(self) -> list[str]:

@@ -498,12 +498,37 @@ def test_player_loads_without_error_and_the_animation_advances(browser, page):
     assert browser.errors() == []
 
 
+def test_player_controls_pause_play_speed_and_seek(browser, page):
+    browser.open(_url(page, "t=0.5&paused=1&speed=2"), READY)
+    assert browser.evaluate("azeePlayer.playing()") is False
+    assert browser.evaluate("azeePlayer.speed()") == 2
+    assert browser.evaluate("document.getElementById('speed').value") == "2"
+    options = browser.evaluate("[...document.querySelectorAll('#speed option')].map(o => o.value)")
+    assert options == ["0.25", "0.5", "1", "1.5", "2"]
+    drawn = browser.evaluate("azeePlayer.frames")
+    browser.open_wait(f"azeePlayer.frames > {drawn + 5}")
+    assert browser.evaluate("azeePlayer.time()") == 0.5  # paused: frames drawn, time still
+    browser.evaluate("document.getElementById('play').click()")
+    assert browser.evaluate("azeePlayer.playing()") is True
+    browser.open_wait("azeePlayer.time() > 0.6")
+    browser.evaluate("document.getElementById('play').click()")
+    browser.evaluate("(() => { const s = document.getElementById('slider'); s.value = 1.5;"
+                     " s.dispatchEvent(new Event('input')); })()")
+    assert browser.evaluate("azeePlayer.time()") == 1.5
+    assert browser.evaluate("document.getElementById('play').textContent") == "play"
+    browser.evaluate("document.getElementById('speed').value = '0.25';"
+                     "document.getElementById('speed').dispatchEvent(new Event('change'))")
+    assert browser.evaluate("azeePlayer.speed()") == 0.25
+    assert browser.errors() == []
+
+
 def test_player_shows_the_blocks_of_the_current_time(browser, page, realized):
     browser.open(_url(page, "t=1.0&paused=1"), READY)
     shown = browser.evaluate("document.getElementById('blocks').textContent")
-    want = [f"{track.ljust(7)} {b}" for track, ivs in realized.schedule.items()
-            for b, s, e in ivs if s <= 1.0 < e]  # fmt: skip
-    assert want and shown.splitlines() == want
+    active = {track: [b for b, s, e in ivs if s <= 1.0 < e]
+              for track, ivs in realized.schedule.items()}  # fmt: skip
+    want = [f"{track.ljust(7)} {', '.join(bs)}" for track, bs in active.items() if bs]
+    assert len(want) >= 3 and shown.splitlines() == want
     assert browser.evaluate("document.getElementById('clock').textContent") == (
         f"1.00 / {(len(realized.qpos) - 1) / realized.fps:.2f} s")
     assert browser.errors() == []

@@ -66,7 +66,7 @@ def build_bvh(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
               signer_map: SignerMap = DEFAULT_MAP):
     """The motion as a ``bvhio.BvhContainer`` (see the module docstring)."""
     bvhio = mo.require("bvhio", "BVH")
-    glm = mo.require("glm", "BVH")
+    glm = mo.require("glm", "BVH")  # PyGLM, which bvhio uses
     st = mo.require("SpatialTransform", "BVH")
     mo.check_qpos(model, qpos, fps)
     qpos = np.asarray(qpos, float)
@@ -118,12 +118,8 @@ def _tip_offsets(model: mujoco.MjModel, signer_map: SignerMap) -> Mapping[int, n
             continue
         s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
         if s >= 0:
-            out[int(model.site_bodyid[s])] = mo.YUP @ _site_in_body(model, s)
+            out[int(model.site_bodyid[s])] = mo.YUP @ model.site_pos[s]
     return out
-
-
-def _site_in_body(model: mujoco.MjModel, s: int) -> np.ndarray:
-    return np.array(model.site_pos[s], float)
 
 
 def _default_tip(model: mujoco.MjModel, b: int, signer_map: SignerMap) -> np.ndarray:

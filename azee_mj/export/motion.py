@@ -113,27 +113,35 @@ def site_positions(model: mujoco.MjModel, qpos: np.ndarray, sites: list[str]) ->
     return out
 
 
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products ``a * b`` of quaternions (..., 4) ``wxyz``."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
+                     aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw], -1)  # fmt: skip
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vectors (..., 3) rotated by unit quaternions (..., 4) ``wxyz``."""
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
 def local_frames(model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Each body's pose in its parent's frame, (T, nbody, 3) and (T, nbody, 4) ``wxyz``,
-    from world frames as :func:`body_frames` gives them. Quaternion signs are made
-    continuous in time (no flip between consecutive frames) for interpolating readers."""
-    parent = model.body_parentid
-    lpos = np.empty_like(pos)
-    lquat = np.empty_like(quat)
-    tmp = np.empty(4)
-    inv = np.empty(4)
-    v = np.empty(3)
-    for k in range(len(pos)):
-        for b in range(model.nbody):
-            p = parent[b]
-            if b == 0:
-                lpos[k, b], lquat[k, b] = pos[k, b], quat[k, b]
-                continue
-            mujoco.mju_negQuat(inv, quat[k, p])
-            mujoco.mju_rotVecQuat(v, pos[k, b] - pos[k, p], inv)
-            mujoco.mju_mulQuat(tmp, inv, quat[k, b])
-            lpos[k, b], lquat[k, b] = v, tmp / np.linalg.norm(tmp)
+    from world frames as :func:`body_frames` gives them (the world body keeps its own).
+    Quaternion signs are made continuous in time (no flip between consecutive frames) for
+    readers that interpolate."""
+    parent = np.array(model.body_parentid)
+    inv = quat[:, parent] * np.array([1.0, -1.0, -1.0, -1.0])
+    lquat = quat_mul(inv, quat)
+    lquat /= np.linalg.norm(lquat, axis=-1, keepdims=True)
+    lpos = quat_rotate(inv, pos - pos[:, parent])
+    lpos[:, 0], lquat[:, 0] = pos[:, 0], quat[:, 0]
     for k in range(1, len(pos)):
         flip = np.sum(lquat[k] * lquat[k - 1], axis=1) < 0
         lquat[k, flip] *= -1

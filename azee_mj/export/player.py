@@ -9,7 +9,8 @@ The URL's query sets the start state, for links and tests: ``t`` (seconds), ``pa
 ``speed``, ``ui=0`` (hide the controls: the canvas fills the window), ``highlight=BODY``
 (draw that body and its children flat magenta). The start camera is the scene's ``front``
 camera (the same pose and vertical field of view as MuJoCo's). ``window.azeePlayer``
-exposes ``ready``, ``time()``, ``setTime(t)``, ``play()``, ``pause()`` and ``error``.
+exposes ``ready``, ``error``, ``frames`` (drawn so far), ``time()``, ``setTime(t)``,
+``play()``, ``pause()``, ``playing()``, ``speed()`` and ``activeBlocks()``.
 """
 
 from __future__ import annotations
@@ -176,12 +177,12 @@ _TEMPLATE = r"""<!DOCTYPE html>
   function active(time) {
     const lines = [];
     for (const [track, ivs] of Object.entries(info.schedule)) {
-      let name = "";
+      const names = [];
       for (const [b, s, e] of ivs) {
         if ((s - 1e-9 <= time && time < e - 1e-9) ||
-            (e >= info.duration - 1e-9 && s <= time && time >= e - 1e-9)) name = b;
+            (e >= info.duration - 1e-9 && s <= time && time >= e - 1e-9)) names.push(b);
       }
-      if (name) lines.push(track.padEnd(7) + " " + name);
+      if (names.length) lines.push(track.padEnd(7) + " " + names.join(", "));
     }
     return lines.join("\n");
   }
@@ -202,6 +203,8 @@ _TEMPLATE = r"""<!DOCTYPE html>
   player.play = () => { playing = true; show(); };
   player.pause = () => { playing = false; show(); };
   player.activeBlocks = () => active(t);
+  player.playing = () => playing;
+  player.speed = () => speed;
   button.addEventListener("click", () => { playing = !playing; show(); });
   window.addEventListener("keydown", (e) => {
     if (e.code === "Space") { playing = !playing; show(); e.preventDefault(); }

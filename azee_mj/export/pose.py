@@ -30,6 +30,7 @@ import os
 import mujoco
 import numpy as np
 
+from azee_mj.errors import AzeeError
 from azee_mj.export import motion as mo
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 
@@ -173,37 +174,36 @@ def keypoints(model: mujoco.MjModel, qpos: np.ndarray,
               signer_map: SignerMap = DEFAULT_MAP) -> dict[str, np.ndarray]:
     """Per component, its points (T, P, 3) in the signer frame [m] on every frame."""
     data = mujoco.MjData(model)
-    comps = {c: (names, terms) for c, (names, terms) in POINTS.items()}
-    # resolve every term to (weight, site id or -1, body id, offset)
-    resolved = {}
-    for c, (_, terms) in comps.items():
-        resolved[c] = [[_resolve(model, t, signer_map) for t in pt] for pt in terms]
-    out = {c: np.zeros((len(qpos), len(comps[c][0]), 3)) for c in comps}
-    R = np.empty(9)
-    for k in range(len(qpos)):
+    T = len(qpos)
+    site = np.empty((T, model.nsite, 3))
+    xpos = np.empty((T, model.nbody, 3))
+    xmat = np.empty((T, model.nbody, 3, 3))
+    for k in range(T):
         data.qpos[:] = qpos[k]
         mujoco.mj_kinematics(model, data)
-        for c, pts in resolved.items():
-            for i, terms in enumerate(pts):
-                acc = np.zeros(3)
-                for w, site, body, off in terms:
-                    if site >= 0:
-                        acc += w * data.site_xpos[site]
-                    else:
-                        mujoco.mju_quat2Mat(R, data.xquat[body])
-                        acc += w * (data.xpos[body] + R.reshape(3, 3) @ off)
-                out[c][k, i] = acc
+        site[k], xpos[k] = data.site_xpos, data.xpos
+        xmat[k] = data.xmat.reshape(-1, 3, 3)
+    out = {}
+    for c, (names, terms) in POINTS.items():
+        pts = np.zeros((T, len(names), 3))
+        for i, point in enumerate(terms):
+            for t in point:
+                w, s, b, off = _resolve(model, t, signer_map)
+                pts[:, i] += w * (site[:, s] if s >= 0 else xpos[:, b] + xmat[:, b] @ off)
+        out[c] = pts
     return out
 
 
 def _resolve(model, t: Term, smap: SignerMap):
     if t.site is not None:
         s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, smap.sites[t.site])
+        if s < 0:
+            raise AzeeError(f".pose export: the model has no site {smap.sites[t.site]!r}")
         return (t.weight, s, -1, None)
     body = smap.bones[t.bone].body if t.bone is not None else t.body
     b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
     if b < 0:
-        raise mo.AzeeError(f".pose export: the model has no body {body!r}")
+        raise AzeeError(f".pose export: the model has no body {body!r}")
     return (t.weight, -1, b, np.asarray(t.offset, float))
 
 

@@ -193,6 +193,5 @@ def write_gltf(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray,
         data = g.binary_blob()
         g.buffers[0].uri = ("data:application/octet-stream;base64,"
                             + base64.b64encode(data).decode("ascii"))  # fmt: skip
-        g._glb_data = None
         with open(path, "w") as f:
             f.write(g.to_json())

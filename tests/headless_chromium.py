@@ -102,8 +102,9 @@ class Chromium:
 
     def open(self, url: str, ready: str, timeout: float = 60.0) -> None:
         """Navigate to ``url`` and wait until the expression ``ready`` is true."""
+        self.evaluate("window.__stale = true")  # gone once the new document replaces it
         self.send("Page.navigate", {"url": url}, session=True)
-        self.open_wait(ready, timeout, url)
+        self.open_wait(f"!window.__stale && ({ready})", timeout, url)
 
     def open_wait(self, ready: str, timeout: float = 60.0, where: str = "page") -> None:
         """Wait until the expression ``ready`` is true in the current page."""

@@ -9,7 +9,8 @@ The URL's query sets the start state, for links and tests: ``t`` (seconds), ``pa
 ``speed``, ``ui=0`` (hide the controls: the canvas fills the window), ``highlight=BODY``
 (draw that body and its children flat magenta). The start camera is the scene's ``front``
 camera (the same pose and vertical field of view as MuJoCo's). ``window.azeePlayer``
-exposes ``ready``, ``error``, ``frames`` (drawn so far), ``time()``, ``setTime(t)``,
+exposes ``ready``, ``error``, ``frames`` (drawn so far), ``readyFrame`` (``frames`` when
+the signer was loaded), ``time()``, ``setTime(t)``,
 ``play()``, ``pause()``, ``playing()``, ``speed()`` and ``activeBlocks()``.
 """
 
@@ -229,6 +230,7 @@ _TEMPLATE = r"""<!DOCTYPE html>
       action.play();
     }
     show();
+    player.readyFrame = player.frames;
     player.ready = true;
   }, (err) => { player.error = String(err); console.error("azee player: " + err); });
 

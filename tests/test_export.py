@@ -348,6 +348,8 @@ def test_csv_rows_are_the_site_positions(model, rollout, realized, tmp_path):
         mujoco.mj_kinematics(model, data)
         want = [data.site({**DEFAULT_MAP.sites, **DEFAULT_MAP.loci}[n]).xpos for n in names]
         np.testing.assert_allclose(pos[k], want, atol=1e-8)
+    # a Rollout exports as its Motion does
+    assert export(rollout, tmp_path / "r.csv").read_bytes() == out.read_bytes()
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,5 +1,5 @@
 """The ``azee-mj`` command line: catalogue, compile and rules (the ``.azee`` front end),
-realize, check, preview, render, report.
+realize, check, preview, render, export, report.
 
 Bad input prints one message and exits with status 2; a failed check exits with 1.
 """
@@ -248,6 +248,15 @@ def _cmd_report(args) -> int:
     return 0
 
 
+def _cmd_export(args) -> int:
+    from azee_mj.export import export
+
+    out = export(_score_arg(args.input, args), args.output,
+                 score=_score_arg(args.score, args), fps=args.fps)
+    print(f"{out}: written")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from azee_mj import __version__
 
@@ -320,6 +329,18 @@ def build_parser() -> argparse.ArgumentParser:
                    "contact sheet of the key postures)")
     w.add_argument("--targets", action="store_true", help="draw constraint targets")
     w.set_defaults(func=_cmd_render)
+
+    e = sub.add_parser("export", help="export a score or rollout to .glb, .gltf, .bvh, .pose, "
+                       ".csv or a web player .html")
+    e.add_argument("input", metavar="SCORE|ROLLOUT",
+                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
+    e.add_argument("-o", "--output", required=True,
+                   help="OUT.glb, OUT.gltf, OUT.bvh, OUT.pose, OUT.csv or OUT.html")
+    e.add_argument("--score", help="the score of a ROLLOUT.npz (the player shows its blocks)")
+    _add_lexicon(e)
+    e.add_argument("--fps", type=float, default=50.0,
+                   help="frames per second when realizing a score (default 50)")
+    e.set_defaults(func=_cmd_export)
 
     h = sub.add_parser("report", help="HTML report (or PNG set) of a score's realization")
     h.add_argument("score", help="SCORE.json or EXPR.azee")

@@ -1,6 +1,10 @@
 """The ``azee-mj`` command line: catalogue, realize, check, preview, render, report.
 
-Bad input prints one message and exits with status 2; a failed check exits with 1.
+Exit status: 0 done; 1 a check found problems; 2 bad input (a score, rollout, option or
+output path; one message, no output file); 3 an internal error (a bug: one line asking for
+a report; ``--debug`` shows the traceback); 130 interrupted (Ctrl-C); 143 terminated
+(SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
+any work starts (:func:`_outputs`).
 """
 
 from __future__ import annotations
@@ -13,10 +17,31 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from azee_mj.errors import AzeeError
+from azee_mj.errors import AzeeError, printable, shorten
 
 if TYPE_CHECKING:
     from azee_mj.markers import Clip
+
+
+#: Exit statuses (see the module docstring).
+EXIT_OK, EXIT_FINDINGS, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+def _outputs(args, outputs: tuple[str, ...], inputs: tuple[str, ...],
+             directory: bool = False) -> None:  # fmt: skip
+    """The one output check of every writing command, before any work: each option named in
+    ``outputs`` (e.g. ``output``, ``report``) that is set must be writable and differ from
+    every input option named in ``inputs`` (see :func:`azee_mj.files.check_output`)."""
+    from azee_mj.files import check_output
+
+    given = [getattr(args, k) for k in inputs if getattr(args, k, None)]
+    paths = [getattr(args, k) for k in outputs if getattr(args, k, None)]
+    for p in paths:
+        check_output(p, given, directory=directory)
+    real = [os.path.realpath(p) for p in paths]
+    if len(set(real)) < len(real):
+        raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
 
 
 def _cmd_sites(args) -> int:
@@ -88,13 +113,15 @@ def _cmd_realize(args) -> int:
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
 
-    if args.fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    from azee_mj.timing import check_fps
+
+    check_fps(args.fps)
+    _outputs(args, ("output", "report"), ("score",))
     score = load_score(args.score)
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_rollout(args.output, rollout)
+    save_rollout(args.output, rollout, inputs=(args.score,))
     if args.report:
-        save_json(args.report, rollout.report())
+        save_json(args.report, rollout.report(), inputs=(args.score, args.output))
     s = rollout.stats
     bad = [t for t in rollout.traces if not t.ok]
     print(f"{args.output}: {len(rollout.time)} frames at {args.fps:g} fps, {s.problems} IK "
@@ -135,9 +162,10 @@ def load_clip(
 
 
 def _clip(args, progress: bool = True):
+    from azee_mj.timing import check_fps
 
-    if args.fps is not None and args.fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    if args.fps is not None:
+        check_fps(args.fps)
     realize_fps = args.fps or 50.0
     return load_clip(args.input, score=getattr(args, "score", None), fps=realize_fps,
                      progress=_Progress("realize") if progress else None)  # fmt: skip
@@ -159,6 +187,7 @@ def _cmd_render(args) -> int:
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time)  # before realizing
+    _outputs(args, ("output",), ("input", "score"))
     clip = _clip(args)
     out = render(clip, args.output, camera=args.camera, size=size, fps=args.fps,
                  time=args.time, targets=args.targets, progress=_Progress("render"))  # fmt: skip
@@ -168,8 +197,12 @@ def _cmd_render(args) -> int:
 
 def _cmd_report(args) -> int:
     from azee_mj.report import write_report
+    from azee_mj.timing import check_fps
 
-    paths = write_report(args.score, args.output, fps=args.fps or 50.0,
+    fps = 50.0 if args.fps is None else check_fps(args.fps)
+    as_dir = args.output.endswith(("/", os.sep)) or Path(args.output).is_dir()
+    _outputs(args, ("output",), ("score",), directory=as_dir)
+    paths = write_report(args.score, args.output, fps=fps,
                          progress=_Progress("report"))  # fmt: skip
     for p in paths:
         print(f"{p}: written")
@@ -237,16 +270,47 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``azee-mj``; returns the exit status."""
+    """Entry point of ``azee-mj``; returns the exit status (see the module docstring).
+
+    ``--debug`` anywhere on the command line shows the traceback of an internal error."""
+    from azee_mj.files import Terminated, install_signal_handlers, remove_temporaries
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        install_signal_handlers()
+    except ValueError:  # not the main thread: signals stay as they are
+        pass
+    try:
         return args.func(args)
     except AzeeError as e:
-        print(f"azee-mj: error: {e}", file=sys.stderr)
-        return 2
+        print(f"azee-mj: error: {printable(str(e))}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        return 130
+        remove_temporaries()
+        print("azee-mj: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print("azee-mj: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    except MemoryError:
+        remove_temporaries()
+        print("azee-mj: error: out of memory; try a shorter score or a lower --fps",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_BAD_INPUT
+    except Exception as e:  # a bug: one line, the traceback only when asked
+        remove_temporaries()
+        if debug:
+            import traceback
+
+            traceback.print_exc()
+        what = shorten(printable(f"{type(e).__name__}: {e}"), 200)
+        print(f"azee-mj: internal error ({what}); please report it with the command and its "
+              "input files (add --debug for the traceback)", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

@@ -50,9 +50,9 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
     }
 
 
-def save_rollout(path: str | os.PathLike, rollout: Rollout) -> None:
-    """Write ``rollout`` to ``path`` atomically."""
-    save_npz(path, rollout_arrays(rollout))
+def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
+    """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace)."""
+    save_npz(path, rollout_arrays(rollout), inputs)
 
 
 def load_rollout(path: str | os.PathLike, nq: int) -> Rollout:

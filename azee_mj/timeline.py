@@ -41,6 +41,7 @@ from azee_mj import score as sc
 from azee_mj.motion import Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
 from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.timing import check_fps, frame_count, frame_range
 
 __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "realize",
            "residual_summary", "score_traces"]
@@ -276,7 +277,7 @@ class Realizer:
 
     # -- pass 2: frames ---------------------------------------------------------------
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
-        T = int(np.floor(self.score.duration * self.fps + 1e-9)) + 1
+        T = frame_count(self.score.duration, self.fps)
         times = np.arange(T) / self.fps
         q = np.tile(self.home, (T, 1))
         moving = np.zeros((T, len(self.track_joints)), bool)
@@ -306,7 +307,7 @@ class Realizer:
                 if ic is None:
                     continue
                 vals = np.full(len(times), np.nan)
-                for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end - 1e-9)):
+                for f in frame_range(b.start, b.end, self.fps, len(times)):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
                     vals[f] = ic.residual(self.solver.kinematics())
@@ -366,8 +367,7 @@ def realize(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     mode = Mode(mode) if isinstance(mode, str) else mode
-    if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+    fps = check_fps(fps, "fps")
     smap = signer_map or DEFAULT_MAP
     solver = solver or make_solver(signer_map=smap)
     r = Realizer(score, solver, fps, mode, smap)

@@ -73,7 +73,7 @@ def _cmd_check(args) -> int:
     from azee_mj.rollout_io import load_rollout
 
     model = load_model()
-    rollout = load_rollout(args.rollout, model.nq)
+    rollout = load_rollout(args.rollout, model.nq, allow_nonfinite=True)  # NaN: a finding
     allowed, score, solver = frozenset(), None, None
     if args.score:
         from azee_mj.schedule import contact_pairs, make_solver

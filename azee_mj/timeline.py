@@ -55,7 +55,9 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 class ConstraintTrace:
     """The residual of one constraint over the frames of its block's interval.
 
-    ``values`` (T,) is NaN outside ``[start, end)``; unit is ``m`` or ``rad``.
+    Stored sparsely: ``active`` holds the residuals of frames ``first .. first +
+    len(active) - 1`` (those inside ``[start, end)``) of ``frames``; :attr:`values` is the
+    dense (frames,) view, NaN outside. Unit ``m`` or ``rad``.
     """
 
     block: str
@@ -65,12 +67,23 @@ class ConstraintTrace:
     unit: str
     start: float
     end: float
-    values: np.ndarray
+    first: int
+    active: np.ndarray
+    frames: int
+
+    @property
+    def values(self) -> np.ndarray:
+        """(frames,) residuals, NaN outside the block's frames (built on demand)."""
+        out = np.full(self.frames, np.nan)
+        out[self.first : self.first + len(self.active)] = self.active
+        return out
 
     @property
     def worst(self) -> float:
-        v = self.values[~np.isnan(self.values)]
-        return float(v.max()) if v.size else 0.0
+        """The largest residual (NaN if a frame's residual is not finite: never ``ok``)."""
+        if not np.isfinite(self.active).all():
+            return float("nan")
+        return float(self.active.max()) if self.active.size else 0.0
 
     @property
     def ok(self) -> bool:
@@ -128,7 +141,8 @@ class Rollout:
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
             "constraints": [
                 {"block": t.block, "index": t.index, "kind": t.kind, "unit": t.unit,
-                 "tol": float(t.tol), "worst": t.worst, "ok": bool(t.ok)}
+                 "tol": float(t.tol), "worst": t.worst if np.isfinite(t.worst) else None,
+                 "ok": bool(t.ok)}
                 for t in self.traces
             ],  # fmt: skip
             "all_within_tolerance": bool(all(t.ok for t in self.traces)),
@@ -306,14 +320,16 @@ class Realizer:
                 ic = self.comp.constraint(c, f"{b.path}#{c.index}")
                 if ic is None:
                     continue
-                vals = np.full(len(times), np.nan)
-                for f in frame_range(b.start, b.end, self.fps, len(times)):
+                span = frame_range(b.start, b.end, self.fps, len(times))
+                vals = np.empty(len(span))
+                for k, f in enumerate(span):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
-                    vals[f] = ic.residual(self.solver.kinematics())
+                    vals[k] = ic.residual(self.solver.kinematics())
                 unit = "m" if isinstance(ic, cn.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
-                                           unit, b.start, b.end, vals))  # fmt: skip
+                                           unit, b.start, b.end, span.start, vals,
+                                           len(times)))  # fmt: skip
         return tuple(out)
 
 

@@ -28,8 +28,8 @@ TIME_STEP = 1e-6
 _PER_SECOND = 1_000_000  # steps per second: k / 1e6 is the correctly rounded time
 #: Longest score [s].
 MAX_DURATION = 3600.0
-#: Most frames in one rollout (1 hour at 50 fps).
-MAX_FRAMES = 180_000
+#: Most frames in one rollout (1 hour at 50 fps, first and last frame included).
+MAX_FRAMES = 180_001
 #: Frame rates accepted [frames/s].
 MIN_FPS, MAX_FPS = 1.0, 1000.0
 #: A frame this close (in frames) to a boundary is on it.

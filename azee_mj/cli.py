@@ -112,7 +112,6 @@ def _cmd_realize(args) -> int:
     from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
-
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
@@ -301,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         print("azee-mj: error: out of memory; try a shorter score or a lower --fps",
               file=sys.stderr)  # fmt: skip
         return EXIT_BAD_INPUT
-    except Exception as e:  # a bug: one line, the traceback only when asked
+    except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback only when asked
         remove_temporaries()
         if debug:
             import traceback

@@ -41,7 +41,7 @@ MAX_SHOWN = 80
 _CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
 #: Longest message printed [characters].
 MAX_MESSAGE = 1000
-_LONG_RUN = re.compile(r"[^\s:;,']{%d,}" % (MAX_SHOWN + 1))
+_LONG_RUN = re.compile(rf"[^\s:;,']{{{MAX_SHOWN + 1},}}")
 
 
 def printable(text: str) -> str:

@@ -97,8 +97,8 @@ def test_a_file_as_parent_directory_or_a_missing_directory(tmp_path, capsys):
     code, err = _run(capsys, "realize", GOOD, "-o", f / "o.npz")
     assert (code, err) == (2, f"{ERR}{f / 'o.npz'}: cannot be written: Not a directory\n")
     code, err = _run(capsys, "realize", GOOD, "-o", tmp_path / "no" / "o.npz")
-    assert (code, err) == (2, f"{ERR}{tmp_path / 'no' / 'o.npz'}: the directory "
-                              f"{tmp_path / 'no'} does not exist\n")
+    assert (code, err) == (2, (f"{ERR}{tmp_path / 'no' / 'o.npz'}: the directory "
+                              f"{tmp_path / 'no'} does not exist\n"))
 
 
 def test_an_unwritable_report_is_found_before_any_work(tmp_path, capsys):
@@ -135,10 +135,9 @@ def test_sigterm_while_writing_removes_the_temporary_file(tmp_path):
     install_signal_handlers()
     try:
         out = tmp_path / "o.json"
-        with pytest.raises(Terminated):
-            with atomic_path(out) as tmp:
-                tmp.write_text("partial")
-                os.kill(os.getpid(), signal.SIGTERM)
+        with pytest.raises(Terminated), atomic_path(out) as tmp:
+            tmp.write_text("partial")
+            os.kill(os.getpid(), signal.SIGTERM)
         assert list(tmp_path.iterdir()) == []
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -174,10 +173,10 @@ def test_sigterm_to_the_command_exits_143_and_leaves_nothing(tmp_path):
 @pytest.mark.parametrize("end, message", [
     (1e6, "R: field 'end': the score lasts 1000000 s; the longest score is 3600 s (1 hour)"),
     (1e308, "R: field 'end': 1e+308 is out of range; numbers in a score lie within -1e+06 to 1e+06"),
-    (10**30, "R: field 'end': an integer of about 31 digits is out of range; numbers in a "
-             "score lie within -1e+06 to 1e+06"),
-    (10**400, "R: field 'end': an integer of about 401 digits is out of range; numbers in a "
-              "score lie within -1e+06 to 1e+06"),
+    (10**30, ("R: field 'end': an integer of about 31 digits is out of range; numbers in a "
+             "score lie within -1e+06 to 1e+06")),
+    (10**400, ("R: field 'end': an integer of about 401 digits is out of range; numbers in a "
+              "score lie within -1e+06 to 1e+06")),
 ])
 def test_long_or_huge_scores_are_refused(end, message):
     with pytest.raises(ScoreError) as e:
@@ -189,8 +188,8 @@ def test_a_huge_integer_in_the_file(tmp_path, capsys):
     src = tmp_path / "big.json"
     src.write_text(json.dumps(_score()).replace('"end": 1', '"end": ' + "9" * 400))
     code, err = _run(capsys, "realize", src, "-o", tmp_path / "o.npz")
-    assert (code, err) == (2, f"{ERR}{src}: invalid score: the integer 9999999999999999999… "
-                              "has 400 digits; numbers in a score lie within -1e+06 to 1e+06\n")
+    assert (code, err) == (2, (f"{ERR}{src}: invalid score: the integer 9999999999999999999… "
+                              "has 400 digits; numbers in a score lie within -1e+06 to 1e+06\n"))
 
 
 @pytest.mark.parametrize("depth", [120, 600, 5000])
@@ -203,10 +202,10 @@ def test_deep_nesting_is_refused_without_recursion_error(tmp_path, capsys, depth
     src.write_text('{"format": "azee-score", "version": 1, "root": ' + text + "}")
     code, err = _run(capsys, "realize", src, "-o", tmp_path / "o.npz")
     assert code == 2
-    assert err in (f"{ERR}score: the score is nested deeper than 100 levels of objects and "
-                   "arrays; the deepest nesting allowed is 100\n",
-                   f"{ERR}{src}: invalid score: nested deeper than 100 levels of objects and "
-                   "arrays\n")
+    assert err in ((f"{ERR}score: the score is nested deeper than 100 levels of objects and "
+                   "arrays; the deepest nesting allowed is 100\n"),
+                   (f"{ERR}{src}: invalid score: nested deeper than 100 levels of objects and "
+                   "arrays\n"))
 
 
 def test_deep_expressions_are_refused():
@@ -230,8 +229,8 @@ def test_fps_must_be_finite_and_in_range(tmp_path, capsys, fps, command):
         assert float(fps) > 240 or not 0 < float(fps) <= 240
         assert (code, err) == (2, f"{ERR}--fps: must be in (0, 240], got {float(fps):g}\n")
     else:
-        assert (code, err) == (2, f"{ERR}--fps must be a number from 1 to 1000, got "
-                                  f"{float(fps):g}\n")  # fmt: skip
+        assert (code, err) == (2, (f"{ERR}--fps must be a number from 1 to 1000, got "
+                                  f"{float(fps):g}\n"))  # fmt: skip
     assert list(tmp_path.iterdir()) == []
 
 
@@ -259,9 +258,9 @@ def test_an_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path, c
 
     monkeypatch.setattr(azee_mj.timeline, "realize", broken)
     code, err = _run(capsys, "realize", GOOD, "-o", tmp_path / "o.npz")
-    assert (code, err) == (3, "azee-mj: internal error (ZeroDivisionError: division by zero); "
+    assert (code, err) == (3, ("azee-mj: internal error (ZeroDivisionError: division by zero); "
                               "please report it with the command and its input files (add "
-                              "--debug for the traceback)\n")
+                              "--debug for the traceback)\n"))
     code, err = _run(capsys, "--debug", "realize", GOOD, "-o", tmp_path / "o.npz")
     assert code == 3 and err.startswith("Traceback (most recent call last):")
     assert list(tmp_path.iterdir()) == []

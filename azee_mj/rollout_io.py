@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 import zipfile
-import zlib
 
 import numpy as np
 
@@ -102,8 +101,7 @@ def _read_arrays(path) -> dict[str, np.ndarray]:
         raise InputFileError(f"{path}: is a directory, not a rollout .npz file") from None
     except PermissionError:
         raise InputFileError(f"{path}: cannot be read (permission denied)") from None
-    except (OSError, ValueError, EOFError, KeyError, TypeError, OverflowError, MemoryError,
-            zipfile.BadZipFile, zlib.error, NotImplementedError) as e:  # fmt: skip
+    except Exception as e:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds on damage
         what = shorten(str(e).splitlines()[0] if str(e) else type(e).__name__, 100)
         raise InputFileError(f"{path}: not a rollout .npz file, or damaged ({what})") from None
 
@@ -112,6 +110,11 @@ def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = Fa
     """Read a rollout ``.npz`` written for a model with ``nq`` joint coordinates; raise
     :class:`InputFileError` naming what is wrong. Non-finite postures are an error unless
     ``allow_nonfinite`` (``check`` reports them as findings instead)."""
+    with np.errstate(all="ignore"):  # hostile values are reported, not warned about
+        return _load(path, nq, allow_nonfinite)
+
+
+def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
     a = _read_arrays(path)
 
     def bad(what: str) -> InputFileError:
@@ -121,8 +124,14 @@ def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = Fa
     if missing:
         raise bad(f"missing array(s) {', '.join(missing)}; a rollout holds {', '.join(REQUIRED)}")
 
+    def get(k: str) -> np.ndarray:
+        if k not in a:
+            group = k.split("_")[0]
+            raise bad(f"missing array '{k}' (the {group}_* arrays come together)")
+        return a[k]
+
     def numeric(k: str, ndim: int | None = None) -> np.ndarray:
-        v = a[k]
+        v = get(k)
         if v.dtype.kind not in "fiu":
             raise bad(f"array '{k}' must hold numbers, got dtype {v.dtype}")
         if ndim is not None and v.ndim != ndim:
@@ -130,7 +139,7 @@ def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = Fa
         return v.astype(float) if v.dtype.kind != "f" or v.dtype != np.float64 else v
 
     def text(k: str) -> np.ndarray:
-        v = a[k]
+        v = get(k)
         if v.dtype.kind != "U" or v.ndim != 1:
             raise bad(f"array '{k}' must be a list of names, got dtype {v.dtype} shape {v.shape}")
         return v
@@ -165,14 +174,14 @@ def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = Fa
     schedule: dict[str, list[TrackInterval]] = {}
     if "schedule_track" in a:
         tracks, blocks = text("schedule_track"), text("schedule_block")
-        spans = numeric("schedule_span")
+        spans = numeric("schedule_span", 2)
         if not (len(tracks) == len(blocks) == len(spans) and spans.shape[1:] == (2,)):
             raise bad("schedule_track, schedule_block and schedule_span must have one row each "
                       "per interval, spans (N, 2)")  # fmt: skip
         for track, block, (start, end) in zip(tracks, blocks, spans):
             schedule.setdefault(str(track), []).append(
                 TrackInterval(str(track), str(block), float(start), float(end)))
-    traces = _traces(a, T, numeric, text, bad) if "residual_kinds" in a else []
+    traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
     st = numeric("stats", 1) if "stats" in a else np.zeros(len(_STATS))
     if len(st) != len(_STATS) or not np.isfinite(st).all() or (st[:4] < 0).any() or (
             st[:4] > 2**53).any():  # fmt: skip
@@ -190,13 +199,17 @@ def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = Fa
 
 def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:
     names, kinds, units = text("residual_names"), text("residual_kinds"), text("residual_units")
-    tol, span = numeric("residual_tol", 1), numeric("residual_span")
+    tol, span = numeric("residual_tol", 1), numeric("residual_span", 2)
     C = len(names)
     if not (len(kinds) == len(units) == len(tol) == len(span) == C and span.shape[1:] == (2,)):
         raise bad("the residual_* arrays must have one row per constraint")
     if "residual_values" in a:  # sparse
-        first = numeric("residual_first", 1).astype(np.int64)
-        count = numeric("residual_count", 1).astype(np.int64)
+        first, count = numeric("residual_first", 1), numeric("residual_count", 1)
+        if not (np.isfinite(first).all() and np.isfinite(count).all()
+                and (first == np.round(first)).all() and (count == np.round(count)).all()
+                and (np.abs(first) <= MAX_FRAMES).all() and (np.abs(count) <= MAX_FRAMES).all()):
+            raise bad("residual_first and residual_count must be whole numbers")
+        first, count = first.astype(np.int64), count.astype(np.int64)
         vals = numeric("residual_values", 1)
         if len(first) != C or len(count) != C or (first < 0).any() or (count < 0).any() or (
                 first + count > T).any() or count.sum() != len(vals):  # fmt: skip
@@ -205,7 +218,7 @@ def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:
         offsets = np.concatenate([[0], np.cumsum(count)])
         parts = [(int(first[j]), vals[offsets[j] : offsets[j + 1]]) for j in range(C)]
     else:  # dense (T, C), NaN outside each block
-        dense = numeric("residuals")
+        dense = numeric("residuals", 2)
         if dense.shape != (T, C):
             raise bad(f"residuals must be (T, C) = ({T}, {C}); got shape {dense.shape}")
         parts = []

@@ -9,7 +9,10 @@ JSON text itself truncated, flipped or given giant integers. Each mutant goes th
 real command line in this process (:func:`run_one`); an outcome is ``ok`` (exit 0 and a
 finite rollout that loads back), ``rejected`` (exit 2, one message line), or a failure:
 ``internal`` (exit 3 or any other status / a traceback), ``nan`` (a non-finite output) or
-``hang`` (over ``--timeout`` seconds). Writes bench/results/fuzz.json.
+``hang`` (over ``--timeout`` seconds). Then ``--rollouts`` damaged rollout files
+(:func:`rollout_mutants`: arrays deleted, reshaped, retyped, made NaN / infinite; bytes
+truncated or flipped) go through ``azee-mj check --score`` (:func:`check_one`): exit 0 / 1,
+or 2 with one line. Writes bench/results/fuzz.json.
 """
 
 from __future__ import annotations
@@ -185,12 +188,90 @@ def run_one(mutant, tmp: Path, fps: float = 10.0, timeout: float = 60.0) -> tupl
     return "ok", f"{len(r.time)} frames"
 
 
+def mutate_rollout(arrays: dict, rng: random.Random) -> dict | bytes:
+    """One mutant of a rollout file's arrays (a dict to save), or damaged file bytes."""
+    import numpy as np
+
+    a = dict(arrays)
+    r = rng.random()
+    k = rng.choice(sorted(a))
+    if r < 0.15:
+        del a[k]
+    elif r < 0.45:  # another value: wrong shape, dtype, or non-finite numbers
+        v = a[k] if a[k].ndim else a[k].reshape(1)
+        a[k] = rng.choice([
+            np.array(np.nan), np.array("text"), np.zeros((0,)), np.zeros((2, 2, 2, 2)),
+            np.arange(3), np.array([1e308, -1e308]), np.array(["x#y", "#", "a#99999999999"]),
+            np.full(v.shape, np.nan) if v.dtype.kind == "f" else v[:0],
+            np.full(v.shape, np.inf) if v.dtype.kind == "f" else v[::-1],
+            v.astype(np.float32) if v.dtype.kind == "f" else v.astype("U1"),
+            v.reshape(-1), v[: max(0, len(v) - 1)],
+        ])  # fmt: skip
+    elif r < 0.6:  # one value spoiled inside a numeric array
+        v = a[k]
+        if v.dtype.kind == "f" and v.size:
+            v = v.copy()
+            v.flat[rng.randrange(v.size)] = rng.choice([np.nan, np.inf, -1e308, 1e308])
+            a[k] = v
+    else:  # the file's bytes
+        import io
+
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **a)
+        data = bytearray(buf.getvalue())
+        if r < 0.75:
+            return bytes(data[: rng.randrange(len(data))])
+        for _ in range(rng.randint(1, 20)):
+            data[rng.randrange(len(data))] = rng.randrange(256)
+        return bytes(data)
+    return a
+
+
+def rollout_mutants(count: int, seed: int = 0):
+    """``count`` (label, mutant) pairs from the rollout of tests/data/good.json."""
+    from azee_mj.rollout_io import rollout_arrays
+    from azee_mj.timeline import realize
+
+    rng = random.Random(seed)
+    base = rollout_arrays(realize(ROOT / "tests" / "data" / "good.json", fps=10))
+    for i in range(count):
+        yield f"rollout#{i}", mutate_rollout(base, rng)
+
+
+def check_one(mutant, tmp: Path) -> tuple[str, str]:
+    """(outcome, detail) of ``azee-mj check`` on one damaged rollout: ``ok`` (exit 0 or 1),
+    ``rejected`` (exit 2, one line) or ``internal``."""
+    import numpy as np
+
+    from azee_mj.cli import main
+
+    path = tmp / "mutant.npz"
+    if isinstance(mutant, bytes):
+        path.write_bytes(mutant)
+    else:
+        with open(path, "wb") as f:
+            np.savez(f, **mutant)
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["check", str(path), "--score", str(ROOT / "tests" / "data" / "good.json")])
+    except BaseException as e:  # noqa: BLE001 - anything escaping main() is a failure
+        return "internal", f"{type(e).__name__}: {e}"[:300]
+    msg = err.getvalue()
+    if code in (0, 1):
+        return "ok", f"exit {code}"
+    if code == 2 and msg.startswith("azee-mj: error: ") and msg.count("\n") == 1:
+        return "rejected", msg.strip()[:300]
+    return "internal", msg.strip()[:300]
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--count", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--fps", type=float, default=10.0)
     ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--rollouts", type=int, default=300, help="damaged rollouts for check")
     args = ap.parse_args()
     sys.setrecursionlimit(1000)  # the default: deep input must not need more
     counts: Counter = Counter()
@@ -203,13 +284,22 @@ def main():
             if outcome not in ("ok", "rejected"):
                 failures.append({"mutant": label, "outcome": outcome, "detail": detail})
                 print(f"{label}: {outcome}: {detail}", flush=True)
+        checks: Counter = Counter()
+        for label, m in rollout_mutants(args.rollouts, args.seed):
+            outcome, detail = check_one(m, Path(d))
+            checks[outcome] += 1
+            if outcome != "ok" and outcome != "rejected":
+                failures.append({"mutant": label, "outcome": outcome, "detail": detail})
+                print(f"{label}: {outcome}: {detail}", flush=True)
     wall = time.perf_counter() - t0
     summary = {"count": args.count, "seed": args.seed, "fps": args.fps, "outcomes": dict(counts),
+               "rollouts": args.rollouts, "check_outcomes": dict(checks),
                "failures": failures, "wall_s": wall}  # fmt: skip
     res = ROOT / "bench" / "results"
     res.mkdir(exist_ok=True)
     (res / "fuzz.json").write_text(json.dumps(summary, indent=1) + "\n")
-    print(f"{args.count} mutants in {wall:.0f} s: {dict(counts)}")
+    print(f"{args.count} scores and {args.rollouts} rollouts in {wall:.0f} s: {dict(counts)}; "
+          f"check: {dict(checks)}")
     return 1 if failures else 0
 
 

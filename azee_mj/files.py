@@ -22,6 +22,7 @@ import os
 import signal
 import stat
 import tempfile
+import zipfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -134,12 +135,19 @@ def install_signal_handlers() -> None:
 
 def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray],
              inputs: Iterable[str | os.PathLike] = ()) -> None:  # fmt: skip
-    """Write numeric / fixed-width text arrays to ``path`` (loads with allow_pickle=False)."""
+    """Write numeric / fixed-width text arrays to ``path`` as a compressed ``.npz`` (loads
+    with ``np.load(..., allow_pickle=False)``); the same arrays always give the same bytes."""
     for k, v in arrays.items():
         if np.asarray(v).dtype == object:
             raise TypeError(f"array {k!r} has dtype object; it would need pickle")
-    with atomic_path(path, ".npz", inputs) as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(f, **arrays)
+    with atomic_path(path, ".npz", inputs) as tmp, zipfile.ZipFile(
+            tmp, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf:  # fmt: skip
+        for k, v in arrays.items():
+            # A fixed timestamp: the same arrays give the same bytes (np.savez stamps now).
+            info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            with zf.open(info, "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(v), allow_pickle=False)
 
 
 def save_json(path: str | os.PathLike, obj, inputs: Iterable[str | os.PathLike] = ()) -> None:

@@ -1,7 +1,12 @@
 """The ``azee-mj`` command line: catalogue, compile and rules (the ``.azee`` front end),
 realize, check, preview, render, export, report.
 
-Bad input prints one message and exits with status 2; a failed check exits with 1.
+Exit status: 0 done; 1 a check found problems (``check``, or ``realize --strict`` with a
+constraint out of tolerance); 2 bad input (a score, rollout, option or
+output path; one message, no output file); 3 an internal error (a bug: one line asking for
+a report; ``--debug`` shows the traceback); 130 interrupted (Ctrl-C); 143 terminated
+(SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
+any work starts (:func:`_outputs`).
 """
 
 from __future__ import annotations
@@ -16,10 +21,35 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from azee_mj.errors import AzeeError
+from azee_mj.errors import AzeeError, printable, shorten
 
 if TYPE_CHECKING:
     from azee_mj.markers import Clip
+
+
+#: Exit statuses (see the module docstring).
+EXIT_OK, EXIT_FINDINGS, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+def _outputs(args, outputs: tuple[str, ...], inputs: tuple[str, ...],
+             directory: bool = False) -> None:  # fmt: skip
+    """The one output check of every writing command, before any work: each option named in
+    ``outputs`` (e.g. ``output``, ``report``) that is set must be writable and differ from
+    every input option named in ``inputs`` and from every sign file of the ``--lexicon``
+    directories (see :func:`azee_mj.files.check_output`)."""
+    from azee_mj.files import check_output
+
+    given = [getattr(args, k) for k in inputs if getattr(args, k, None)]
+    for d in getattr(args, "lexicon", None) or ():
+        if os.path.isdir(d):
+            given += [p for p in Path(d).iterdir() if p.suffix in (".json", ".azee")]
+    paths = [getattr(args, k) for k in outputs if getattr(args, k, None)]
+    for p in paths:
+        check_output(p, given, directory=directory)
+    real = [os.path.realpath(p) for p in paths]
+    if len(set(real)) < len(real):
+        raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
 
 
 def _cmd_sites(args) -> int:
@@ -68,6 +98,7 @@ def _cmd_compile(args) -> int:
 
     if (args.input is None) == (args.e is None):
         raise AzeeError("compile: give one EXPR.azee file or -e TEXT")
+    _outputs(args, ("output",), ("input",))
     lex = args.lexicon or ()
     if args.e is not None:
         score = compile_text(args.e, args.strong_side, lex, file="<-e>")
@@ -78,7 +109,7 @@ def _cmd_compile(args) -> int:
         sys.stdout.write(text)
         return 0
     out = Path(args.output)
-    with atomic_path(out) as tmp:
+    with atomic_path(out, inputs=(args.input,) if args.input else ()) as tmp:
         tmp.write_text(text, encoding="utf-8")
     print(f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
           file=sys.stderr)  # fmt: skip
@@ -117,7 +148,7 @@ def _cmd_check(args) -> int:
     from azee_mj.rollout_io import load_rollout
 
     model = load_model()
-    rollout = load_rollout(args.rollout, model.nq)
+    rollout = load_rollout(args.rollout, model.nq, allow_nonfinite=True)  # NaN: a finding
     allowed, score, solver = frozenset(), None, None
     if args.score:
         from azee_mj.schedule import contact_pairs, make_solver
@@ -156,14 +187,15 @@ def _cmd_realize(args) -> int:
     from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
+    from azee_mj.timing import check_fps
 
-    if args.fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    check_fps(args.fps)
+    _outputs(args, ("output", "report"), ("score",))
     score = load_score(_score_arg(args.score, args))
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_rollout(args.output, rollout)
+    save_rollout(args.output, rollout, inputs=(args.score,))
     if args.report:
-        save_json(args.report, rollout.report())
+        save_json(args.report, rollout.report(), inputs=(args.score, args.output))
     s = rollout.stats
     bad = [t for t in rollout.traces if not t.ok]
     print(f"{args.output}: {len(rollout.time)} frames at {args.fps:g} fps, {s.problems} IK "
@@ -206,9 +238,10 @@ def load_clip(
 
 
 def _clip(args, progress: bool = True):
+    from azee_mj.timing import check_fps
 
-    if args.fps is not None and args.fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    if args.fps is not None:
+        check_fps(args.fps)
     realize_fps = args.fps or 50.0
     score = _score_arg(getattr(args, "score", None), args)
     return load_clip(_score_arg(args.input, args), score=score, fps=realize_fps,
@@ -231,6 +264,7 @@ def _cmd_render(args) -> int:
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time)  # before realizing
+    _outputs(args, ("output",), ("input", "score"))
     clip = _clip(args)
     out = render(clip, args.output, camera=args.camera, size=size, fps=args.fps,
                  time=args.time, targets=args.targets, progress=_Progress("render"))  # fmt: skip
@@ -240,8 +274,12 @@ def _cmd_render(args) -> int:
 
 def _cmd_report(args) -> int:
     from azee_mj.report import write_report
+    from azee_mj.timing import check_fps
 
-    paths = write_report(_score_arg(args.score, args), args.output, fps=args.fps or 50.0,
+    fps = 50.0 if args.fps is None else check_fps(args.fps)
+    as_dir = args.output.endswith(("/", os.sep)) or Path(args.output).is_dir()
+    _outputs(args, ("output",), ("score",), directory=as_dir)
+    paths = write_report(_score_arg(args.score, args), args.output, fps=fps,
                          progress=_Progress("report"))  # fmt: skip
     for p in paths:
         print(f"{p}: written")
@@ -250,7 +288,10 @@ def _cmd_report(args) -> int:
 
 def _cmd_export(args) -> int:
     from azee_mj.export import export
+    from azee_mj.timing import check_fps
 
+    check_fps(args.fps)
+    _outputs(args, ("output",), ("input", "score"))
     out = export(_score_arg(args.input, args), args.output,
                  score=_score_arg(args.score, args), fps=args.fps)
     print(f"{out}: written")
@@ -352,17 +393,48 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``azee-mj``; returns the exit status."""
+    """Entry point of ``azee-mj``; returns the exit status (see the module docstring).
+
+    ``--debug`` anywhere on the command line shows the traceback of an internal error."""
+    from azee_mj.files import Terminated, install_signal_handlers, remove_temporaries
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
+    try:
+        install_signal_handlers()
+    except ValueError:  # not the main thread: signals stay as they are
+        pass
     try:
         with contextlib.ExitStack() as args.cleanup:
             return args.func(args)
     except AzeeError as e:
-        print(f"azee-mj: error: {e}", file=sys.stderr)
-        return 2
+        print(f"azee-mj: error: {printable(str(e))}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        return 130
+        remove_temporaries()
+        print("azee-mj: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print("azee-mj: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    except MemoryError:
+        remove_temporaries()
+        print("azee-mj: error: out of memory; try a shorter score or a lower --fps",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_BAD_INPUT
+    except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback only when asked
+        remove_temporaries()
+        if debug:
+            import traceback
+
+            traceback.print_exc()
+        what = shorten(printable(f"{type(e).__name__}: {e}"), 200)
+        print(f"azee-mj: internal error ({what}); please report it with the command and its "
+              "input files (add --debug for the traceback)", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

@@ -414,8 +414,8 @@ def test_lexicon_errors(tmp_path):
     with pytest.raises(ExpressionError) as e:
         compile_text(":bad", lexicon=[tmp_path])
     assert str(e.value) == ("<text>:1:1: :bad: lexicon :bad: BAD.K1: constraint 1 (place): "
-                            "unknown site 'T_TPI_R'; did you mean 'T_TIP_R'? (azee-mj sites "
-                            "lists all)")  # fmt: skip
+                            "unknown site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj "
+                            "sites lists all)")  # fmt: skip
     (tmp_path / "seq.json").write_text(json.dumps(_example("bien")))
     with pytest.raises(ExpressionError) as e:
         Lexicon([tmp_path])

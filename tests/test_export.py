@@ -15,6 +15,7 @@ import pytest
 
 from azee_mj.azee import compile_text
 from azee_mj.cli import main
+from azee_mj.errors import OutputError
 from azee_mj.export import Motion, export, load_motion
 from azee_mj.export import bvh as bvh_mod
 from azee_mj.export import motion as mo
@@ -23,9 +24,9 @@ from azee_mj.export.csv import columns
 from azee_mj.export.gltf import srgb_to_linear
 from azee_mj.export.player import camera_pose
 from azee_mj.model import SCENE_PATH, load_model
+from azee_mj.schedule import schedule
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
-from azee_mj.schedule import schedule
 from azee_mj.timeline import realize
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -424,7 +425,8 @@ def test_an_npz_of_another_model_is_refused(tmp_path, capsys):
     notnpz = tmp_path / "x.npz"
     notnpz.write_text("hello")
     err = _exit2(["export", str(notnpz), "-o", str(out)], capsys)
-    assert err.startswith(f"azee-mj: error: {notnpz}: not a rollout .npz file (")
+    assert err == (f"azee-mj: error: {notnpz}: not a rollout .npz file, or damaged (File is not "
+                   "a zip file)\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.npz", "sites.npz", "x.npz"]
 
 
@@ -450,8 +452,9 @@ def test_a_writer_failing_midway_leaves_no_partial_file(tmp_path, realized, monk
         raise OSError("disk full")
 
     monkeypatch.setattr(csv_mod, "write_csv", failing)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(OutputError) as e:
         export(realized, tmp_path / "m.csv")
+    assert str(e.value) == f"{tmp_path / 'm.csv'}: cannot be written: disk full"
     assert list(tmp_path.iterdir()) == []
 
 

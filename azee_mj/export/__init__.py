@@ -32,6 +32,7 @@ from azee_mj.errors import AzeeError, InputFileError
 from azee_mj.export.motion import MissingExtraError, Motion, schedule_tuples
 from azee_mj.files import atomic_path
 from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.timing import check_fps
 
 #: Output suffix -> format name.
 FORMATS = {".glb": "glb", ".gltf": "gltf", ".bvh": "bvh", ".pose": "pose", ".csv": "csv",
@@ -69,8 +70,6 @@ def load_motion(path: str | os.PathLike, *, score: str | os.PathLike | None = No
     if bundled and list(r.site_names) != list(DEFAULT_MAP.sites):
         raise InputFileError(f"{path}: not a rollout of this signer: its site_names are not "
                              f"the catalogue's {len(DEFAULT_MAP.sites)} AZee sites")
-    if not (np.isfinite(r.fps) and r.fps > 0):
-        raise InputFileError(f"{path}: fps must be positive, got {r.fps}")
     sched = r.schedule
     if score is not None:
         sched = schedule(sc.load_score(Path(score)))
@@ -78,9 +77,10 @@ def load_motion(path: str | os.PathLike, *, score: str | os.PathLike | None = No
 
 
 def write(output: str | os.PathLike, motion: Motion, *, model: mujoco.MjModel | None = None,
-          signer_map: SignerMap = DEFAULT_MAP) -> Path:
+          signer_map: SignerMap = DEFAULT_MAP, inputs=()) -> Path:
     """Write ``motion`` to ``output`` in the format its suffix names (:data:`FORMATS`),
-    atomically. Returns the output path."""
+    atomically, by the output rule of :mod:`azee_mj.files` (``inputs``: files it may not
+    replace). Returns the output path."""
     from azee_mj.export import motion as mo
 
     output = Path(output)
@@ -91,7 +91,7 @@ def write(output: str | os.PathLike, motion: Motion, *, model: mujoco.MjModel | 
         model = load_model()
     mo.check_qpos(model, motion.qpos, motion.fps, where=motion.name or "qpos")
     writer = _writer(fmt)  # imports the extra before any file is made
-    with atomic_path(output) as tmp:
+    with atomic_path(output, inputs=inputs) as tmp:
         writer(tmp, model, motion, signer_map)
     return output
 
@@ -155,8 +155,7 @@ def export(source, output: str | os.PathLike, *, score: str | os.PathLike | None
     missing optional library (:class:`MissingExtraError`).
     """
     _writer(format_of(output))  # an unknown suffix or a missing extra fails before realizing
-    if fps <= 0:
-        raise AzeeError(f"fps must be positive, got {fps}")
+    fps = check_fps(fps, "fps")
     if isinstance(source, Motion):
         motion = source
     elif hasattr(source, "qpos") and hasattr(source, "schedule"):
@@ -164,4 +163,5 @@ def export(source, output: str | os.PathLike, *, score: str | os.PathLike | None
                         schedule_tuples(source.schedule))  # fmt: skip
     else:
         motion = load_motion(source, score=score, fps=fps, model=model)
-    return write(output, motion, model=model, signer_map=signer_map)
+    inputs = [p for p in (source, score) if isinstance(p, str | os.PathLike)]
+    return write(output, motion, model=model, signer_map=signer_map, inputs=inputs)

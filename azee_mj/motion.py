@@ -167,7 +167,7 @@ class Motion:
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
-            for tr in tracks:
+            for tr in sorted(tracks):  # sorted: the same rows in any process
                 # While blending toward the next posture, keep what both postures keep.
                 key = next((k for k in keys[tr] if k.start <= t < k.end), None)
                 nxt = next((k for k in keys[tr] if k.start > t), None)

@@ -263,14 +263,14 @@ def write_report(
     ``ik_problems.png``, ``convergence.png`` and ``residuals.png`` in it. Atomic writes;
     returns the paths written."""
     from azee_mj.files import atomic_path
+    from azee_mj.timing import check_fps
 
     out_s = str(out)
     as_dir = out_s.endswith(("/", os.sep)) or Path(out).is_dir()
     if not as_dir and Path(out).suffix.lower() not in (".html", ".htm"):
         raise AzeeError(f"-o: expected REPORT.html or a directory DIR/ for PNG files, got "
                         f"{out_s!r}")  # fmt: skip
-    if fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {fps:g}")
+    fps = check_fps(fps)
     _plt()
     tick = progress or (lambda f: None)
     r = realize_recorded(score, fps=fps, progress=lambda f: tick(0.5 * f))

@@ -21,6 +21,7 @@ from azee_mj import score as sc
 from azee_mj.kinematics import compile_point, compile_vector
 from azee_mj.model import MODEL_PATH
 from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.timing import frame_range
 
 #: How dear moving a track's joints is, relative to an arm joint (1): the trunk and neck are
 #: dearer to move than the arms, and a clavicle joint costs CLAVICLE_WEIGHT.
@@ -356,6 +357,7 @@ def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
     r = Schedule(score, solver or make_solver())
     out: dict[int, set[tuple[str, str]]] = {}
     for w in r.contacts:
-        for f in np.flatnonzero((times >= w.start - 1e-9) & (times < w.end)):
+        fps = (len(times) - 1) / times[-1] if len(times) > 1 and times[-1] > 0 else 1.0
+        for f in frame_range(w.start, w.end, fps, len(times)):
             out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
     return {f: frozenset(v) for f, v in out.items()}

@@ -291,6 +291,73 @@ def _finger_joints(fingers=FINGERS) -> list[str]:
     return [f"{f}_{{X}}_{n}_flex" for f in fingers for n in PHALANGES]
 
 
+#: Handshape joint angles [rad]: a thumb (1_flex, 1_abd, 2_flex, 3_flex) and a finger
+#: (1_flex, 1_spread, 2_flex, 3_flex).
+_STRAIGHT = (0.0, 0.0, 0.0, 0.0)
+_CLOSED = (1.5, 0.0, 1.65, 1.0)  # curled into the palm, as the fist morph
+_T_SIDE = (0.0, 0.0, THUMB_FLAT_MCP, 0.0)  # adducted along the index, as the flat morph
+_THUMB = ("1_flex", "1_abd", "2_flex", "3_flex")
+_T_ACROSS = tuple(FIST_THUMB[f"thumb_{{X}}_{j}"] for j in _THUMB)  # over the closed fingers
+_T_OUT = (-0.4, 0.2, 0.0, 0.0)  # away from the palm, in its plane
+_T_UP = tuple(THUMB_UP[f"thumb_{{X}}_{j}"] for j in _THUMB)  # straight up from a fist
+_T_IN = _T_ACROSS  # folded across the palm
+_T_OPP = (-0.3, 1.0, 0.3, 1.2)  # opposed: its tip 3 mm from the curved index's tip
+_CURVED = (1.0, 0.0, 1.1, 0.7)  # curved to meet the opposed thumb
+
+
+def _hs(thumb, index, middle, ring, little) -> tuple[tuple[float, ...], ...]:
+    return (thumb, index, middle, ring, little)
+
+
+def _sp(f, spread):
+    return (f[0], spread, f[2], f[3])
+
+
+#: Named handshapes of French Sign Language and HamNoSys (morphs ``hs_NAME``), as joint
+#: angles of one hand: (thumb, index, middle, ring, little), see ``_hs``. A score applies
+#: one at weight 1 from the rest hand; other morphs add to it.
+HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
+    "flat": _hs(_T_SIDE, _STRAIGHT, _STRAIGHT, _STRAIGHT, _STRAIGHT),
+    "bent": _hs(_T_SIDE, *[(1.3, 0.0, 0.0, 0.0)] * 4),
+    "a": _hs(_T_SIDE, *[_CLOSED] * 4),
+    "s": _hs(_T_ACROSS, *[_CLOSED] * 4),
+    "index": _hs(_T_ACROSS, _STRAIGHT, _CLOSED, _CLOSED, _CLOSED),
+    "v": _hs(_T_ACROSS, _sp(_STRAIGHT, 0.25), _sp(_STRAIGHT, -0.15), _CLOSED, _CLOSED),
+    "h": _hs(_T_ACROSS, _STRAIGHT, _STRAIGHT, _CLOSED, _CLOSED),
+    "3": _hs(_T_OUT, _sp(_STRAIGHT, 0.25), _sp(_STRAIGHT, -0.15), _CLOSED, _CLOSED),
+    "w": _hs(_T_IN, _sp(_STRAIGHT, 0.25), _STRAIGHT, _sp(_STRAIGHT, -0.25), _CLOSED),
+    "4": _hs(_T_IN, _sp(_STRAIGHT, 0.15), _STRAIGHT, _sp(_STRAIGHT, -0.1),
+             _sp(_STRAIGHT, -0.2)),
+    "5": _hs(_T_OUT, _sp(_STRAIGHT, 0.3), _STRAIGHT, _sp(_STRAIGHT, -0.2),
+             _sp(_STRAIGHT, -0.4)),
+    "claw": _hs((-0.3, 0.3, 0.5, 0.5), (0.3, 0.3, 1.0, 0.8), (0.3, 0.0, 1.0, 0.8),
+                (0.3, -0.2, 1.0, 0.8), (0.3, -0.4, 1.0, 0.8)),
+    "l": _hs(_T_OUT, _STRAIGHT, _CLOSED, _CLOSED, _CLOSED),
+    "y": _hs(_T_OUT, _CLOSED, _CLOSED, _CLOSED, _sp(_STRAIGHT, -0.4)),
+    "i": _hs(_T_ACROSS, _CLOSED, _CLOSED, _CLOSED, _STRAIGHT),
+    "horns": _hs(_T_ACROSS, _STRAIGHT, _CLOSED, _CLOSED, _STRAIGHT),
+    "x": _hs(_T_ACROSS, (0.3, 0.0, 1.3, 1.0), _CLOSED, _CLOSED, _CLOSED),
+    "bent_v": _hs(_T_ACROSS, (0.0, 0.25, 1.3, 1.0), (0.0, -0.15, 1.3, 1.0), _CLOSED, _CLOSED),
+    "thumb": _hs(_T_UP, *[_CLOSED] * 4),
+    "c": _hs((0.0, 0.35, 0.1, 0.1), *[(0.6, 0.0, 0.7, 0.4)] * 4),
+    "o": _hs(_T_OPP, *[_CURVED] * 4),
+    "flat_o": _hs((0.4, 0.7, 0.1, -0.05), *[(1.05, 0.0, 0.35, 0.2)] * 4),
+    "f": _hs(_T_OPP, _CURVED, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15),
+             _sp(_STRAIGHT, -0.3)),
+    "pinch": _hs(_T_OPP, _CURVED, _CLOSED, _CLOSED, _CLOSED),
+}  # fmt: skip
+
+
+def handshape_changes(name: str) -> dict[str, float]:
+    """The joint changes [rad] of morph ``hs_<name>`` (joint names with ``{X}``)."""
+    thumb, *fingers = HANDSHAPES[name]
+    out = {f"thumb_{{X}}_{j}": v for j, v in zip(_THUMB, thumb)}
+    for f, angles in zip(FINGERS, fingers):
+        out.update({f"{f}_{{X}}_{j}": v
+                    for j, v in zip(("1_flex", "1_spread", "2_flex", "3_flex"), angles)})
+    return out
+
+
 def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     """Morph id -> (joint change at weight 1 [rad / m], sided)."""
     m: dict[str, tuple[dict[str, float], bool]] = {}
@@ -325,6 +392,8 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     flat.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.0,
                  "thumb_{X}_2_flex": THUMB_FLAT_MCP, "thumb_{X}_3_flex": 0.0})  # fmt: skip
     m["flat"] = (flat, True)
+    for name in HANDSHAPES:  # the rest hand is at 0 on every hand joint
+        m[f"hs_{name}"] = (handshape_changes(name), True)
     m["shoulder_raise"] = ({"clav_{X}_elev": 0.45}, True)
     m["shoulder_shrug"] = ({"clav_{X}_elev": 0.35, "clav_{X}_prot": 0.15}, True)
     m["spine_extended"] = ({"back_1_flex": -0.15, "back_2_flex": -0.15}, False)

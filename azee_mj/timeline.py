@@ -43,6 +43,7 @@ from azee_mj.kinematics import BodyAxis, SitePos
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
 from azee_mj.sites import DEFAULT_MAP, DIGITS, SignerMap
+from azee_mj.timing import check_fps, frame_count, frame_range
 
 __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "realize",
            "residual_summary", "score_traces"]
@@ -82,7 +83,9 @@ RELAXING = ("spine", "head")
 class ConstraintTrace:
     """The residual of one constraint over the frames of its block's interval.
 
-    ``values`` (T,) is NaN outside ``[start, end)``; unit is ``m`` or ``rad``.
+    Stored sparsely: ``active`` holds the residuals of frames ``first .. first +
+    len(active) - 1`` (those inside ``[start, end)``) of ``frames``; :attr:`values` is the
+    dense (frames,) view, NaN outside. Unit ``m`` or ``rad``.
     """
 
     block: str
@@ -92,14 +95,25 @@ class ConstraintTrace:
     unit: str
     start: float
     end: float
-    values: np.ndarray
+    first: int
+    active: np.ndarray
+    frames: int
     #: Why a constraint its key posture could not meet misses ("" if it was met).
     reason: str = ""
 
     @property
+    def values(self) -> np.ndarray:
+        """(frames,) residuals, NaN outside the block's frames (built on demand)."""
+        out = np.full(self.frames, np.nan)
+        out[self.first : self.first + len(self.active)] = self.active
+        return out
+
+    @property
     def worst(self) -> float:
-        v = self.values[~np.isnan(self.values)]
-        return float(v.max()) if v.size else 0.0
+        """The largest residual (NaN if a frame's residual is not finite: never ``ok``)."""
+        if not np.isfinite(self.active).all():
+            return float("nan")
+        return float(self.active.max()) if self.active.size else 0.0
 
     @property
     def ok(self) -> bool:
@@ -158,7 +172,8 @@ class Rollout:
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
             "constraints": [
                 {"block": t.block, "index": t.index, "kind": t.kind, "unit": t.unit,
-                 "tol": float(t.tol), "worst": t.worst, "ok": bool(t.ok), "reason": t.reason}
+                 "tol": float(t.tol), "worst": t.worst if np.isfinite(t.worst) else None,
+                 "ok": bool(t.ok), "reason": t.reason}
                 for t in self.traces
             ],  # fmt: skip
             "all_within_tolerance": bool(all(t.ok for t in self.traces)),
@@ -399,7 +414,7 @@ class Realizer:
 
     # -- pass 2: frames ---------------------------------------------------------------
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
-        T = int(np.floor(self.score.duration * self.fps + 1e-9)) + 1
+        T = frame_count(self.score.duration, self.fps)
         times = np.arange(T) / self.fps
         q = np.tile(self.home, (T, 1))
         moving = np.zeros((T, len(self.track_joints)), bool)
@@ -428,15 +443,16 @@ class Realizer:
                 ic = self.comp.constraint(c, f"{b.path}#{c.index}")
                 if ic is None:
                     continue
-                vals = np.full(len(times), np.nan)
-                for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end - 1e-9)):
+                span = frame_range(b.start, b.end, self.fps, len(times))
+                vals = np.empty(len(span))
+                for k, f in enumerate(span):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
-                    vals[f] = ic.residual(self.solver.kinematics())
+                    vals[k] = ic.residual(self.solver.kinematics())
                 unit = "m" if isinstance(ic, cn.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
-                                           unit, b.start, b.end, vals,
-                                           self.reasons.get(ic.label, "")))  # fmt: skip
+                                           unit, b.start, b.end, span.start, vals,
+                                           len(times), self.reasons.get(ic.label, "")))  # fmt: skip
         return tuple(out)
 
 
@@ -490,8 +506,7 @@ def realize(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     mode = Mode(mode) if isinstance(mode, str) else mode
-    if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+    fps = check_fps(fps, "fps")
     smap = signer_map or DEFAULT_MAP
     solver = solver or make_solver(signer_map=smap)
     # A left-handed score is realized as the mirror image of its right-handed mirror, so

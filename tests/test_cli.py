@@ -73,8 +73,8 @@ def test_bad_score_exits_2_with_one_message_and_no_file(tmp_path, capsys):
     out = tmp_path / "out.npz"
     assert main(["realize", str(_bad_score(tmp_path)), "-o", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err == ("azee-mj: error: GOOD.K1: constraint 1 (place): unknown site 'T_TPI_R'; "
-                   "did you mean 'T_TIP_R'? (azee-mj sites lists all)\n")
+    assert err == ("azee-mj: error: GOOD.K1: constraint 1 (place): unknown site '@T_TPI(s)'; "
+                   "did you mean '@T_TIP(s)'? (azee-mj sites lists all)\n")
     assert not out.exists()
     assert list(tmp_path.iterdir()) == [tmp_path / "bad.json"]
 
@@ -111,4 +111,4 @@ def test_check_exit_codes(tmp_path, capsys):
 
 def test_realize_rejects_a_bad_fps(tmp_path, capsys):
     assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"), "--fps", "0"]) == 2
-    assert capsys.readouterr().err == "azee-mj: error: --fps must be positive, got 0.0\n"
+    assert capsys.readouterr().err == "azee-mj: error: --fps must be a number from 1 to 1000, got 0\n"

@@ -103,11 +103,12 @@ class JointMirror:
         for j in range(m.njnt):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, mirror_name(name))
-            if k < 0 or m.jnt_type[j] not in (mujoco.mjtJoint.mjJNT_HINGE,
-                                              mujoco.mjtJoint.mjJNT_SLIDE):  # fmt: skip
+            kind = int(m.jnt_type[j])
+            if k < 0 or kind not in (int(mujoco.mjtJoint.mjJNT_HINGE),
+                                     int(mujoco.mjtJoint.mjJNT_SLIDE)):  # fmt: skip
                 return None
             c = float((_REFLECT * d.xaxis[j]) @ d.xaxis[k])
-            hinge = m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+            hinge = kind == int(mujoco.mjtJoint.mjJNT_HINGE)
             perm[m.jnt_qposadr[j]] = m.jnt_qposadr[k]
             sign[m.jnt_qposadr[j]] = -np.sign(c) if hinge else np.sign(c)
         out = cls(m, perm, sign)

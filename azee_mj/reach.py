@@ -27,6 +27,8 @@ from azee_mj.kinematics import SitePos
 
 #: The hand comes to its target from this far in front of the shoulder [m].
 APPROACH = 0.3
+#: How far each of two hands meeting in the signing space starts from its centre [m].
+MEET_GAP = 0.05
 #: The elbow's swivel out of the vertical plane through the shoulder-wrist line [rad].
 SWIVEL_OUT = np.deg2rad(25.0)
 
@@ -165,6 +167,9 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
         reach.append((arm, c.site, solver.kinematics().value(c.target)))
         other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
         if other is not None and other is not arm and meet is not None and not meeting:
+            # each hand a little to its own side, so that they start apart and close in
             centre = d.site_xpos[solver.site_id(meet)].copy()
-            meeting = [(arm, c.site, centre), (other, c.target.site, centre)]
+            gap = np.array([0.0, MEET_GAP, 0.0])
+            meeting = [(arm, c.site, centre + arm.out * gap),
+                       (other, c.target.site, centre + other.out * gap)]
     return tuple(seeded(g) for g in (reach, meeting) if g)

@@ -280,3 +280,11 @@ def test_realize_strict_exits_1_on_a_miss(tmp_path):
     out = tmp_path / "far.npz"
     assert main(["realize", str(score), "-o", str(out)]) == 0
     assert main(["realize", str(score), "-o", str(out), "--strict"]) == 1
+
+
+def test_the_bundled_signer_mirrors(solver):
+    jm = mirror.JointMirror.of(solver.model)
+    assert jm is not None
+    q = _posture(solver.model, 7)
+    assert not np.array_equal(jm(q), q)
+    np.testing.assert_array_equal(jm(jm(q)), q)

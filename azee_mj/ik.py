@@ -34,7 +34,6 @@ from azee_mj.constraints import (
     COLLISION_TOL,
     CONTACT_ALLOWANCE,
     PENETRATION_LIMIT,
-    Collisions,
     Constraint,
     JointTarget,
     Look,
@@ -53,7 +52,6 @@ from azee_mj.kinematics import (
     Names,
     SitePos,
     Unit,
-    skew,
 )
 from azee_mj.natural import Effort, Naturalness
 from azee_mj.natural import rows as natural_rows
@@ -303,21 +301,11 @@ class Solver:
         return Plan(self, problem)
 
     def _evaluate(self, q, plan: Plan) -> Rows:
-        """The rows of ``plan`` on posture ``q``."""
-        m, d = self.model, self.data
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        r, J = plan.rows()
-        norms = [float(np.sqrt(r[a:b] @ r[a:b])) for a, b in plan.hard]
-        Jf = J[:, plan.free]
-        depth = 0.0
-        hits = plan.collisions.rows(d) if plan.collide else None
-        if hits is not None:
-            depth = hits.depth
-            r = np.concatenate([r, hits.r])
-            Jf = np.vstack([Jf, hits.J])
-        return Rows(r, Jf, norms, max(depth, 0.0))
+        """The rows of ``plan`` on posture ``q`` (computed by the compiled core)."""
+        r, J, norms, depth = plan.core.evaluate(np.ascontiguousarray(q, float), plan.collide)
+        r = np.frombuffer(r)
+        return Rows(r, np.frombuffer(J).reshape(r.size, plan.free.size),
+                    np.frombuffer(norms).tolist(), depth)  # fmt: skip
 
     # -- solve --------------------------------------------------------------------------
     def solve(self, problem: IKProblem, q0: np.ndarray | None = None) -> IKResult:
@@ -498,69 +486,22 @@ class Solver:
 
     def _lm(self, q, plan, history, posture=0.0, stop=0.05) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
-        ``posture * (q - natural)`` weighted per dof; ``done`` when every constraint row norm is
-        under ``stop`` (its tolerance fraction)."""
+        ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
+        under ``stop`` (its tolerance fraction).
+
+        The run is compiled code (``azee_mj._ikcore``): damping relative to the mean diagonal
+        of ``J^T J`` (``MU0``) times the joint weights, steps from ``mju_boxQP`` inside the
+        joint ranges and a ``MAX_STEP`` trust region, Nielsen's damping update; it stops when
+        done, after three steps of little gain (one with the guide on), or when the damping
+        or the step vanish."""
         free = plan.free
-        lo, hi = plan.lower[free], plan.upper[free]
-        w = self.dof_weight[free]
-        nat = plan.prefer[free]
-        q = q.copy()
-        e = self._evaluate(q, plan)
-        r, J, norms, depth = e.r, e.J, e.norms, e.depth
-        cost = float(r @ r)
-        if posture:
-            cost += posture**2 * float(w @ (q[free] - nat) ** 2)
-        mu, nu = MU0, 2.0
-        stalls = 0
-        diag = np.diag_indices(free.size)
-        n = free.size
-        res = np.zeros(n)
-        R = np.zeros((n, n + 7))
-        it = 0
-        for it in range(1, self.max_iter + 1):
-            if max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL:
-                return LMRun(q, cost, True, it - 1, True)
-            H = J.T @ J
-            g = J.T @ r
-            if posture:
-                # The mild preference for the natural posture: rows posture * (q - natural).
-                H[diag] += posture**2 * w
-                g += posture**2 * w * (q[free] - nat)
-            Hd = H.copy()
-            Hd[diag] += mu * (np.trace(H) / n + 1.0) * w
-            res[:] = 0.0
-            lo_step = np.maximum(lo - q[free], -MAX_STEP)
-            hi_step = np.minimum(hi - q[free], MAX_STEP)
-            mujoco.mju_boxQP(res, R, None, Hd, g, lo_step, hi_step)
-            q_new = q.copy()
-            q_new[free] = np.clip(q[free] + res, lo, hi)
-            e = self._evaluate(q_new, plan)
-            r_new, J_new, norms_new, depth_new = e.r, e.J, e.norms, e.depth
-            cost_new = float(r_new @ r_new)
-            if posture:
-                cost_new += posture**2 * float(w @ (q_new[free] - nat) ** 2)
-            if cost_new < cost:
-                gain = (cost - cost_new) / cost
-                # Nielsen's update from the ratio of actual to predicted decrease.
-                predicted = -(2.0 * g @ res + res @ H @ res)
-                rho = (cost - cost_new) / predicted if predicted > 0 else 0.0
-                q, r, J, norms, depth, cost = q_new, r_new, J_new, norms_new, depth_new, cost_new
-                mu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-7)
-                nu = 2.0
-                history.append(cost)
-                if gain < (0.02 if posture else 1e-3):
-                    stalls += 1
-                    if posture or stalls >= 3:
-                        break  # preference done (polish without it), or stuck in a minimum
-            else:
-                mu *= nu
-                nu *= 2.0
-                history.append(cost)
-            if mu > 1e3 or float(res @ res) < 1e-20:
-                break
-        done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
-        met = max(norms, default=0.0) <= 1.0 and depth <= 2 * COLLISION_TOL
-        return LMRun(q, cost, done, it, done or met)
+        q_out, cost, done, it, met, hist = plan.core.lm(
+            np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
+            self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
+            float(posture), float(stop), int(self.max_iter), plan.collide,
+        )  # fmt: skip
+        history.extend(hist)
+        return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))
 
     # -- equality constraints --------------------------------------------------------------
     def configure_equalities(self, problem: IKProblem, data: mujoco.MjData | None = None) -> int:
@@ -643,23 +584,87 @@ class Attempt:
     iterations: int
 
 
+#: Row block kinds of the compiled core (azee_mj/_ikcore.c).
+_POINT, _ORIENT, _JOINT, _GENERIC = 0, 1, 2, 3
+#: Terms of a point target.
+_SITE, _BODY = 0, 1
+
+
+def _core_module():
+    """The compiled core, with a clear message when the package was not built."""
+    try:
+        from azee_mj import _ikcore
+    except ImportError as e:  # pragma: no cover - depends on the installation
+        raise ImportError(
+            "azee_mj's compiled solver core is not built: run `pip install -e .` (or "
+            "`python setup.py build_ext --inplace`) in the source tree; it needs a C compiler"
+        ) from e
+    return _ikcore
+
+
+def _flat_point(e, coef: float = 1.0):
+    """``e`` as (constant (3,), [(coef, kind, name)]) if it is a linear combination of
+    constants, sites and body origins, else None."""
+    if isinstance(e, Const):
+        return coef * np.asarray(e.value, float), []
+    if isinstance(e, SitePos):
+        return np.zeros(3), [(coef, _SITE, e.site)]
+    if isinstance(e, BodyOrigin):
+        return np.zeros(3), [(coef, _BODY, e.body)]
+    if isinstance(e, Lin):
+        const, terms = np.zeros(3), []
+        for c, t in e.terms:
+            f = _flat_point(t, coef * c)
+            if f is None:
+                return None
+            const += f[0]
+            terms += f[1]
+        return const, terms
+    return None
+
+
+def _axis_target(e):
+    """``Unit(e)`` as ("const", unit vector) or ("axis", body, unit local, sign) when ``e`` is
+    a constant or a scaled body axis, else None."""
+    if isinstance(e, Lin) and len(e.terms) == 1:
+        c, t = e.terms[0]
+        f = _axis_target(t)
+        if f is None or c == 0.0:
+            return None
+        if f[0] == "const":
+            return "const", f[1] * np.sign(c)
+        return "axis", f[1], f[2], f[3] * np.sign(c)
+    if isinstance(e, Const):
+        v = np.asarray(e.value, float)
+        n = np.linalg.norm(v)
+        return ("const", v / n) if n >= 1e-12 else None
+    if isinstance(e, BodyAxis):
+        loc = np.asarray(e.local, float)
+        n = np.linalg.norm(loc)
+        return ("axis", e.body, loc / n, 1.0) if n >= 1e-12 else None
+    return None
+
+
 @dataclasses.dataclass(frozen=True)
 class RowBlock:
-    """One constraint's rows in a plan: ``fn(r_block, J_block)`` writes rows
-    ``[start, stop)``; ``scaled`` when they come already divided by the tolerance."""
+    """One constraint's rows in a plan, ``[start, stop)``; ``scaled`` when they come already
+    divided by the tolerance (the general forms, written by the expression evaluator)."""
 
-    fn: Callable[[np.ndarray, np.ndarray], None]
     start: int
     stop: int
     scaled: bool
 
 
 class Plan:
-    """A problem compiled for one solver: ids resolved, row blocks laid out, buffers made.
+    """A problem compiled for one solver: ids resolved, row blocks laid out, buffers made,
+    and the compiled core (``azee_mj._ikcore.Core``) that evaluates them and runs the
+    iteration.
 
-    Common constraint forms (a placement at a fixed point or on another site, an
-    orientation toward a fixed vector, a joint target) write their rows straight from
-    ``mj_jacSite`` / ``mj_jacBody``; other forms go through the expression evaluator.
+    The core writes the rows of the common forms itself from ``mj_jacSite`` /
+    ``mj_jacBody``: a placement at a linear combination of fixed points, sites and body
+    origins; an orientation toward a fixed vector or a body axis (along, opposite,
+    perpendicular); a joint target. Other forms (a look, a computed vector) it asks of the
+    expression evaluator (:meth:`Constraint.rows`).
     """
 
     def __init__(self, solver: Solver, problem: IKProblem):
@@ -683,91 +688,89 @@ class Plan:
                       for c in problem.constraints if isinstance(c, JointTarget)}  # fmt: skip
         self.hard: list[tuple[int, int]] = []
         inv: list[float] = []
+        ints: list[list[int]] = []
+        dbls: list[list[float]] = []
+        term_i: list[int] = []
+        term_d: list[float] = []
+        self.generic: list[tuple[Constraint, int, int]] = []
         row = 0
+        pinned = set()
         for c in problem.constraints:
-            fn, k, scaled = self._compile(c)
-            self.items.append(RowBlock(fn, row, row + k, scaled))
+            kind, k, i, x = self._compile(c, term_i, term_d)
+            if kind == _JOINT:
+                pinned.add(i[3])
+            if kind == _GENERIC:
+                self.generic.append((c, row, row + k))
+            scaled = kind == _GENERIC
+            self.items.append(RowBlock(row, row + k, scaled))
             if not c.soft:
                 self.hard.append((row, row + k))
+            ints.append([kind, row, k, 0 if c.soft else 1, *i])
+            dbls.append(x)
             inv += [1.0 if scaled else 1.0 / c.tol] * k
             row += k
         self.inv = np.array(inv)
         self.J = np.zeros((row, m.nv))
         self.r = np.zeros(row)
-        self.tmp = np.empty((3, m.nv))
-        self.collisions = Collisions(m, self.floor, self.free)
-        pinned = set()
-        for c, item in zip(problem.constraints, self.items):
-            if isinstance(c, JointTarget):
-                dof = int(m.jnt_dofadr[solver.joint_id(c.joint)])
-                self.J[item.start, dof] = 1.0
-                pinned.add(dof)
+        self.core = _core_module().Core(
+            m._address, self.d._address, (m, self.d),
+            np.array(ints, np.int32).reshape(-1), np.array(dbls, float).reshape(-1),
+            np.array(term_i, np.int32), np.array(term_d, float), self.inv,
+            self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
+            self._generic_rows if self.generic else None,
+        )  # fmt: skip
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         self.pinned = np.isin(self.free, sorted(pinned))
 
-    def _compile(self, c):
-        """(fn(r_block, J_block), number of rows, rows already scaled by 1/tol)."""
-        s, m, d = self.s, self.m, self.d
-        if isinstance(c, Place) and isinstance(c.target, (Const, SitePos)):
-            sid = s.site_id(c.site)
-            if isinstance(c.target, Const):
-                t = np.asarray(c.target.value, float)
-
-                def place(r, J):
-                    mujoco.mj_jacSite(m, d, J, None, sid)
-                    r[:] = d.site_xpos[sid] - t
-
-                return place, 3, False
-            sid2 = s.site_id(c.target.site)
-
-            def contact(r, J):
-                mujoco.mj_jacSite(m, d, J, None, sid)
-                mujoco.mj_jacSite(m, d, self.tmp, None, sid2)
-                J -= self.tmp
-                r[:] = d.site_xpos[sid] - d.site_xpos[sid2]
-
-            return contact, 3, False
-        if isinstance(c, Orient) and isinstance(c.vector, Const):
-            bid = s.body_id(c.body)
-            local = np.asarray(c.local, float)
-            v = np.asarray(c.vector.value, float)
-            v = v / np.linalg.norm(v) * (-1.0 if c.rel is Rel.OPP else 1.0)
-            perp = c.rel is Rel.PERP
-
-            def orient(r, J):
-                mujoco.mj_jacBody(m, d, None, self.tmp, bid)
-                a = d.xmat[bid].reshape(3, 3) @ local
-                da = skew(-a) @ self.tmp  # da/dq = -[a]x J_rot
-                if perp:
-                    r[0] = a @ v
-                    J[0] = v @ da
-                else:
-                    r[:] = a - v
-                    J[:] = da
-
-            return orient, 1 if perp else 3, False
+    def _compile(self, c, term_i: list[int], term_d: list[float]):
+        """(kind, rows, 5 ints [perp, id, id2, dof, first term] + [term count], 11 floats
+        [const 3, local 3, local2 3, value, 0]) of constraint ``c`` for the core; appends
+        a point target's terms to ``term_i`` (kind, id) / ``term_d`` (coefficient)."""
+        s, m = self.s, self.m
+        zero = [0.0] * 11
+        if isinstance(c, Place):
+            flat = _flat_point(c.target)
+            if flat is not None:
+                const, terms = flat
+                t0 = len(term_d)
+                for coef, kind, name in terms:
+                    term_i += [kind, s.site_id(name) if kind == _SITE else s.body_id(name)]
+                    term_d.append(coef)
+                return (_POINT, 3, [0, s.site_id(c.site), -1, 0, t0, len(terms)],
+                        [*const, *zero[3:]])  # fmt: skip
+        if isinstance(c, Orient):
+            tgt = _axis_target(c.vector)
+            if tgt is not None:
+                perp = 1 if c.rel is Rel.PERP else 0
+                sign = -1.0 if c.rel is Rel.OPP else 1.0
+                local = [float(x) for x in c.local]
+                if tgt[0] == "const":
+                    return (_ORIENT, 1 if perp else 3, [perp, s.body_id(c.body), -1, 0, 0, 0],
+                            [*(sign * tgt[1]), *local, 0.0, 0.0, 0.0, 0.0, 0.0])  # fmt: skip
+                _, body, loc2, sgn = tgt
+                return (_ORIENT, 1 if perp else 3,
+                        [perp, s.body_id(c.body), s.body_id(body), 0, 0, 0],
+                        [0.0, 0.0, 0.0, *local, *loc2, sign * sgn, 0.0])  # fmt: skip
         if isinstance(c, JointTarget):
-            adr = m.jnt_qposadr[s.joint_id(c.joint)]
-            value = c.value
-
-            def joint(r, J):
-                r[0] = d.qpos[adr] - value
-
-            return joint, 1, False
+            j = s.joint_id(c.joint)
+            return (_JOINT, 1, [0, int(m.jnt_qposadr[j]), -1, int(m.jnt_dofadr[j]), 0, 0],
+                    [*zero[:9], float(c.value), 0.0])  # fmt: skip
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
         else:
             k = 1 if isinstance(c, Orient) and c.rel is Rel.PERP else 3
+        return _GENERIC, k, [0, -1, -1, 0, 0, 0], zero
 
-        def generic(r, J):
-            r[:], J[:] = c.rows(s.kinematics())
-
-        return generic, k, True
+    def _generic_rows(self) -> None:
+        """The core's callback: rows of the general forms on the posture in ``solver.data``."""
+        k = self.s.kinematics()
+        for c, a, b in self.generic:
+            self.r[a:b], self.J[a:b] = c.rows(k)
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``."""
-        for it in self.items:
-            it.fn(self.r[it.start:it.stop], self.J[it.start:it.stop])
+        """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``
+        (after ``mj_kinematics`` and ``mj_comPos``)."""
+        self.core.rows()
         return self.r * self.inv, self.J * self.inv[:, None]
 
     def report(self, q: np.ndarray) -> tuple[tuple[Residual, ...], float]:
@@ -778,8 +781,8 @@ class Plan:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         out = []
+        self.core.rows()
         for c, it in zip(self.cons, self.items):
-            it.fn(self.r[it.start:it.stop], self.J[it.start:it.stop])
             r = self.r[it.start:it.stop]
             if it.scaled:
                 value = c.residual(self.s.kinematics())

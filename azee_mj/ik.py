@@ -30,6 +30,7 @@ from collections.abc import Callable, Mapping
 import mujoco
 import numpy as np
 
+from azee_mj import native
 from azee_mj.constraints import (
     COLLISION_TOL,
     CONTACT_ALLOWANCE,
@@ -54,7 +55,6 @@ from azee_mj.kinematics import (
     Unit,
 )
 from azee_mj.natural import Effort, Naturalness
-from azee_mj.natural import rows as natural_rows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -218,6 +218,7 @@ class Solver:
         self.naturalness = naturalness
         self.effort_dofs = (np.flatnonzero(naturalness.strength > 0) if naturalness is not None
                             else np.zeros(0, int))  # fmt: skip
+        self.effort = Effort(self.model, self.effort_dofs)
 
     # -- names ------------------------------------------------------------------------
     def site_id(self, name: str) -> int:
@@ -330,19 +331,23 @@ class Solver:
         # meets everything; the best attempt by one cost is kept.
         best = None
         iters = attempt = 0
-        for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
-            run = self._attempt(start, plan, history)
-            iters += run.iterations
-            if best is None or run.rank < best.rank:
-                best = run
-        restarts = self.restarts if problem.restarts is None else problem.restarts
-        while best.rank[0] and attempt < restarts:
-            attempt += 1
-            start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
-            run = self._attempt(start, plan, history, transparent_first=attempt == 1)
-            iters += run.iterations
-            if run.rank < best.rank:
-                best = run
+        masks = plan.mask_rigid_pairs()
+        try:
+            for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
+                run = self._attempt(start, plan, history)
+                iters += run.iterations
+                if best is None or run.rank < best.rank:
+                    best = run
+            restarts = self.restarts if problem.restarts is None else problem.restarts
+            while best.rank[0] and attempt < restarts:
+                attempt += 1
+                start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
+                run = self._attempt(start, plan, history, transparent_first=attempt == 1)
+                iters += run.iterations
+                if run.rank < best.rank:
+                    best = run
+        finally:
+            masks()
         q = best.q
         residuals, depth = plan.report(q)
         hard = [r for r, c in zip(residuals, cons) if not c.soft]
@@ -379,13 +384,11 @@ class Solver:
         return Attempt(q, (0, nat), iters + n_it)
 
     def _natural(self, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
-        r, J = natural_rows(self.naturalness, plan.effort, self.data, plan.free)
-        if not plan.problem.preferences:
-            return r, J
-        k = self.kinematics()
-        rows = [c.rows(k) for c in plan.problem.preferences]
-        return (np.concatenate([r, *(x for x, _ in rows)]),
-                np.vstack([J, *(j[:, plan.free] for _, j in rows)]))
+        """Naturalness rows (effort, comfort, preferences) and their Jacobian over the free
+        dofs on the posture in ``self.data`` (see :func:`azee_mj.natural.rows`)."""
+        r, J = plan.core.natural()
+        r = np.frombuffer(r)
+        return r, np.frombuffer(J).reshape(r.size, plan.free.size)
 
     def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
         """The most natural posture among those that meet the constraints, from ``q`` that
@@ -393,79 +396,23 @@ class Solver:
         constraint and collision rows (and of the joints at a limit the step would cross),
         each followed by steps back onto the constraints. A step is kept only if every
         constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
-        naturalness never bends a constraint. Returns (q, natural cost, iterations)."""
+        naturalness never bends a constraint. Returns (q, natural cost, iterations).
+
+        Compiled code (``azee_mj._ikcore``): the null space from LAPACK's SVD (singular
+        values under ``NULL_TOL`` of the largest), a trust radius from ``NATURAL_STEP``
+        doubling on success up to ``MAX_STEP`` and quartered on failure, at most
+        ``NATURAL_ITER`` steps, two stalls end it."""
         free = plan.free
         mov = np.flatnonzero(~plan.pinned)  # a joint target (a hand shape) pins its joint
         if self.naturalness is None or not mov.size:
             return q, 0.0, 0
-        lo, hi = plan.lower[free], plan.upper[free]
-        n = free.size
-        e = self._evaluate(q, plan)
-        rn, Jn = self._natural(plan)
-        nat = float(rn @ rn)
-        radius, stalls, it = NATURAL_STEP, 0, 0
-        res = np.zeros(n)
-        R = np.zeros((n, n + 7))
-        eye = np.eye(mov.size)
-        for it in range(1, NATURAL_ITER + 1):
-            Jm, Jnm = e.J[:, mov], Jn[:, mov]
-            Hn = Jnm.T @ Jnm
-            gn = Jnm.T @ rn
-            locked = np.zeros(mov.size, bool)
-            N = eye
-            for _ in range(3):
-                A = np.vstack([Jm, eye[locked]]) if locked.any() else Jm
-                if A.shape[0]:
-                    _, S, Vt = np.linalg.svd(A, full_matrices=True)
-                    k = int(np.sum(S > NULL_TOL * S[0])) if S.size and S[0] > 0 else 0
-                    N = Vt[k:].T
-                if not N.shape[1]:
-                    break
-                B = N.T @ Hn @ N
-                B[np.diag_indices_from(B)] += 1e-3 * (np.trace(B) / N.shape[1] + 1e-12)
-                step_m = N @ -np.linalg.solve(B, N.T @ gn)
-                qm = q[free[mov]] + step_m
-                out = (qm < lo[mov] - 1e-12) | (qm > hi[mov] + 1e-12)
-                if not (out & ~locked).any():
-                    break
-                locked |= out
-            if not N.shape[1]:
-                break
-            step = np.zeros(n)
-            step[mov] = step_m
-            big = float(np.abs(step).max())
-            if big > radius:
-                step *= radius / big
-            q_new = q.copy()
-            q_new[free] = np.clip(q[free] + step, lo, hi)
-            e_new = self._evaluate(q_new, plan)
-            for _ in range(2):  # back onto the constraints (the step is first-order)
-                if not e_new.r.size or max(e_new.norms, default=0.0) <= stop:
-                    break
-                H = e_new.J.T @ e_new.J
-                H[np.diag_indices(n)] += 1e-9 * (np.trace(H) / n + 1.0)
-                res[:] = 0.0
-                mujoco.mju_boxQP(res, R, None, H, e_new.J.T @ e_new.r, lo - q_new[free],
-                                 hi - q_new[free])  # fmt: skip
-                q_new[free] = np.clip(q_new[free] + res, lo, hi)
-                e_new = self._evaluate(q_new, plan)
-            rn_new, Jn_new = self._natural(plan)
-            nat_new = float(rn_new @ rn_new)
-            # never further from a constraint than the polish started, nor deeper
-            bound = max(stop, max(e.norms, default=0.0))
-            ok = max(e_new.norms, default=0.0) <= bound and e_new.depth <= max(e.depth, 1e-5)
-            if ok and nat_new < nat:
-                gain = (nat - nat_new) / max(nat, 1e-12)
-                q, e, rn, Jn, nat = q_new, e_new, rn_new, Jn_new, nat_new
-                radius = min(2.0 * radius, MAX_STEP)
-                stalls = stalls + 1 if gain < 1e-3 else 0
-            else:
-                radius *= 0.25
-                stalls += 1 if radius < 1e-3 else 0
-            history.append(float(e.r @ e.r))
-            if stalls >= 2:
-                break
-        return q, nat, it
+        q_out, nat, it, hist = plan.core.polish(
+            np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
+            mov.astype(np.int32), float(stop), plan.collide, NATURAL_ITER, NATURAL_STEP,
+            NULL_TOL, MAX_STEP,
+        )  # fmt: skip
+        history.extend(hist)
+        return np.frombuffer(q_out).copy(), nat, it
 
     def _restart_point(self, attempt, q_start, free):
         """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
@@ -590,18 +537,6 @@ _POINT, _ORIENT, _JOINT, _GENERIC = 0, 1, 2, 3
 _SITE, _BODY = 0, 1
 
 
-def _core_module():
-    """The compiled core, with a clear message when the package was not built."""
-    try:
-        from azee_mj import _ikcore
-    except ImportError as e:  # pragma: no cover - depends on the installation
-        raise ImportError(
-            "azee_mj's compiled solver core is not built: run `pip install -e .` (or "
-            "`python setup.py build_ext --inplace`) in the source tree; it needs a C compiler"
-        ) from e
-    return _ikcore
-
-
 def _flat_point(e, coef: float = 1.0):
     """``e`` as (constant (3,), [(coef, kind, name)]) if it is a linear combination of
     constants, sites and body origins, else None."""
@@ -624,25 +559,26 @@ def _flat_point(e, coef: float = 1.0):
 
 
 def _axis_target(e):
-    """``Unit(e)`` as ("const", unit vector) or ("axis", body, unit local, sign) when ``e`` is
-    a constant or a scaled body axis, else None."""
+    """``Unit(e)`` for the core: ("const", unit vector), ("axis", body, unit local, sign) for
+    a scaled body axis, or ("point", constant, terms) for a linear combination of constants,
+    sites and body origins (see :func:`_flat_point`); None for other forms."""
     if isinstance(e, Lin) and len(e.terms) == 1:
         c, t = e.terms[0]
         f = _axis_target(t)
-        if f is None or c == 0.0:
-            return None
-        if f[0] == "const":
-            return "const", f[1] * np.sign(c)
-        return "axis", f[1], f[2], f[3] * np.sign(c)
-    if isinstance(e, Const):
-        v = np.asarray(e.value, float)
-        n = np.linalg.norm(v)
-        return ("const", v / n) if n >= 1e-12 else None
+        if f is not None and c != 0.0 and f[0] == "axis":
+            return "axis", f[1], f[2], f[3] * np.sign(c)
     if isinstance(e, BodyAxis):
         loc = np.asarray(e.local, float)
         n = np.linalg.norm(loc)
         return ("axis", e.body, loc / n, 1.0) if n >= 1e-12 else None
-    return None
+    flat = _flat_point(e)
+    if flat is None:
+        return None
+    const, terms = flat
+    if terms:
+        return "point", const, terms
+    n = np.linalg.norm(const)
+    return "const", (const / n if n >= 1e-12 else np.zeros(3))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -677,7 +613,7 @@ class Plan:
             # An attempt is done within 2 COLLISION_TOL of the floor: within the allowance.
             self.floor[a, b] = -(CONTACT_ALLOWANCE - 2 * COLLISION_TOL)
         self.lower, self.upper = solver.lower, solver.upper
-        self.effort = Effort(m, solver.effort_dofs)
+        self.effort = solver.effort
         self.natural = problem.natural
         self.problem = problem
         self.collide = problem.collide
@@ -693,73 +629,157 @@ class Plan:
         term_i: list[int] = []
         term_d: list[float] = []
         self.generic: list[tuple[Constraint, int, int]] = []
+        hard: list[int] = []
         row = 0
         pinned = set()
         for c in problem.constraints:
-            kind, k, i, x = self._compile(c, term_i, term_d)
-            if kind == _JOINT:
-                pinned.add(i[3])
-            if kind == _GENERIC:
+            blocks = self._compile(c, term_i, term_d)
+            k = sum(x[1] for x in blocks)
+            generic = blocks[0][0] == _GENERIC
+            if generic:
                 self.generic.append((c, row, row + k))
-            scaled = kind == _GENERIC
-            self.items.append(RowBlock(row, row + k, scaled))
+            self.items.append(RowBlock(row, row + k, generic))
             if not c.soft:
                 self.hard.append((row, row + k))
-            ints.append([kind, row, k, 0 if c.soft else 1, *i])
-            dbls.append(x)
-            inv += [1.0 if scaled else 1.0 / c.tol] * k
+                hard += [row, row + k]
+            start = row
+            for kind, kb, i, x in blocks:
+                if kind == _JOINT:
+                    pinned.add(i[3])
+                ints.append([kind, start, kb, 0 if c.soft else 1, *i])
+                dbls.append(x)
+                start += kb
+            inv += [1.0 if generic else 1.0 / c.tol] * k
             row += k
         self.inv = np.array(inv)
         self.J = np.zeros((row, m.nv))
         self.r = np.zeros(row)
-        self.core = _core_module().Core(
+        self.core = native.core().Core(
             m._address, self.d._address, (m, self.d),
             np.array(ints, np.int32).reshape(-1), np.array(dbls, float).reshape(-1),
             np.array(term_i, np.int32), np.array(term_d, float), self.inv,
             self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
-            self._generic_rows if self.generic else None,
+            self._generic_rows if self.generic else None, np.array(hard, np.int32),
         )  # fmt: skip
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         self.pinned = np.isin(self.free, sorted(pinned))
+        nat = solver.naturalness
+        if nat is not None:
+            prefs = problem.preferences
+            k = sum(c.rows(solver.kinematics())[0].size for c in prefs) if prefs else 0
+            self.pref_r, self.pref_J = np.zeros(k), np.zeros((k, m.nv))
+            edof = self.effort.dofs
+            self.core.set_natural(
+                edof.astype(np.int32), np.sqrt(nat.effort_weight) / nat.strength[edof],
+                np.ascontiguousarray(nat.comfort, float), np.ascontiguousarray(nat.neutral, float),
+                self.effort.anc_u8, self.pref_r, self.pref_J,
+                self._preference_rows if k else None,
+            )  # fmt: skip
 
-    def _compile(self, c, term_i: list[int], term_d: list[float]):
-        """(kind, rows, 5 ints [perp, id, id2, dof, first term] + [term count], 11 floats
-        [const 3, local 3, local2 3, value, 0]) of constraint ``c`` for the core; appends
-        a point target's terms to ``term_i`` (kind, id) / ``term_d`` (coefficient)."""
+    def _preference_rows(self) -> None:
+        """The core's callback: the preferences' rows on the posture in ``solver.data``."""
+        k, row = self.s.kinematics(), 0
+        for c in self.problem.preferences:
+            r, J = c.rows(k)
+            self.pref_r[row : row + r.size], self.pref_J[row : row + r.size] = r, J
+            row += r.size
+
+    def mask_rigid_pairs(self) -> Callable[[], None]:
+        """Keep ``mj_collision`` off the geom pairs that cannot move relative to each other
+        (no free dof between their bodies: within a hand whose shape is fixed, within the
+        unmoved rest of the body); returns the function that restores the model.
+
+        Bodies joined without a free dof form one rigid group; each group gets its own
+        ``contype`` bit and every other bit as ``conaffinity``, so geoms collide only with
+        other groups. Left as it is when the model uses other collision masks or there are
+        more groups than bits."""
+        m = self.m
+        contype, conaff = m.geom_contype.copy(), m.geom_conaffinity.copy()
+        active = (contype | conaff) != 0
+        if not active.any() or not (np.all(contype[active] == 1) and
+                                    np.all(conaff[active] == 1)):  # fmt: skip
+            return lambda: None
+        moving = np.zeros(m.nbody, bool)
+        moving[m.dof_bodyid[self.free]] = True
+        group = np.arange(m.nbody)
+        for b in range(1, m.nbody):  # parents come before children
+            if not moving[b]:
+                group[b] = group[m.body_parentid[b]]
+        used, gid = np.unique(group[m.geom_bodyid[active]], return_inverse=True)
+        if used.size > 31:
+            return lambda: None
+        bit = (1 << gid).astype(np.int32)
+        m.geom_contype[active] = bit
+        m.geom_conaffinity[active] = np.int32(0x7FFFFFFF) & ~bit
+
+        def restore():
+            m.geom_contype[:] = contype
+            m.geom_conaffinity[:] = conaff
+
+        return restore
+
+    def _compile(self, c, term_i: list[int], term_d: list[float]) -> list:
+        """The core's blocks [(kind, rows, 6 ints [perp, id, id2, dof, first term, terms],
+        11 floats [const 3, local 3, local2 3, value, 0])] of constraint ``c``; appends point
+        terms to ``term_i`` (kind, id) / ``term_d`` (coefficient). A general form is one
+        ``_GENERIC`` block."""
         s, m = self.s, self.m
         zero = [0.0] * 11
+
+        def terms_of(terms):
+            t0 = len(term_d)
+            for coef, kind, name in terms:
+                term_i.extend([kind, s.site_id(name) if kind == _SITE else s.body_id(name)])
+                term_d.append(coef)
+            return t0, len(terms)
+
+        def orient(body, local, rel, vector):
+            tgt = _axis_target(vector)
+            if tgt is None:
+                return None
+            perp = 1 if rel is Rel.PERP else 0
+            sign = -1.0 if rel is Rel.OPP else 1.0
+            local = [float(x) for x in local]
+            k = 1 if perp else 3
+            bid = s.body_id(body)
+            if tgt[0] == "const":
+                return (_ORIENT, k, [perp, bid, -1, 0, 0, 0],
+                        [*(sign * tgt[1]), *local, *zero[:5]])  # fmt: skip
+            if tgt[0] == "axis":
+                _, b2, loc2, sgn = tgt
+                return (_ORIENT, k, [perp, bid, s.body_id(b2), 0, 0, 0],
+                        [0.0, 0.0, 0.0, *local, *loc2, sign * sgn, 0.0])  # fmt: skip
+            _, const, terms = tgt
+            return (_ORIENT, k, [perp, bid, -1, 0, *terms_of(terms)],
+                    [*const, *local, 0.0, 0.0, 0.0, sign, 0.0])  # fmt: skip
+
         if isinstance(c, Place):
             flat = _flat_point(c.target)
             if flat is not None:
                 const, terms = flat
-                t0 = len(term_d)
-                for coef, kind, name in terms:
-                    term_i += [kind, s.site_id(name) if kind == _SITE else s.body_id(name)]
-                    term_d.append(coef)
-                return (_POINT, 3, [0, s.site_id(c.site), -1, 0, t0, len(terms)],
-                        [*const, *zero[3:]])  # fmt: skip
-        if isinstance(c, Orient):
-            tgt = _axis_target(c.vector)
-            if tgt is not None:
-                perp = 1 if c.rel is Rel.PERP else 0
-                sign = -1.0 if c.rel is Rel.OPP else 1.0
-                local = [float(x) for x in c.local]
-                if tgt[0] == "const":
-                    return (_ORIENT, 1 if perp else 3, [perp, s.body_id(c.body), -1, 0, 0, 0],
-                            [*(sign * tgt[1]), *local, 0.0, 0.0, 0.0, 0.0, 0.0])  # fmt: skip
-                _, body, loc2, sgn = tgt
-                return (_ORIENT, 1 if perp else 3,
-                        [perp, s.body_id(c.body), s.body_id(body), 0, 0, 0],
-                        [0.0, 0.0, 0.0, *local, *loc2, sign * sgn, 0.0])  # fmt: skip
-        if isinstance(c, JointTarget):
+                return [(_POINT, 3, [0, s.site_id(c.site), -1, 0, *terms_of(terms)],
+                         [*const, *zero[3:]])]  # fmt: skip
+        elif isinstance(c, Orient):
+            b = orient(c.body, c.local, c.rel, c.vector)
+            if b is not None:
+                return [b]
+        elif isinstance(c, Look):
+            n_terms = len(term_d)
+            eyes = [orient(body, local, Rel.ALONG,
+                           Lin(((1.0, c.target), (-1.0, BodyOrigin(body)))))
+                    for body, local in c.eyes]  # fmt: skip
+            if all(b is not None for b in eyes):
+                return eyes
+            del term_i[2 * n_terms :], term_d[n_terms:]
+        elif isinstance(c, JointTarget):
             j = s.joint_id(c.joint)
-            return (_JOINT, 1, [0, int(m.jnt_qposadr[j]), -1, int(m.jnt_dofadr[j]), 0, 0],
-                    [*zero[:9], float(c.value), 0.0])  # fmt: skip
+            return [(_JOINT, 1, [0, int(m.jnt_qposadr[j]), -1, int(m.jnt_dofadr[j]), 0, 0],
+                     [*zero[:9], float(c.value), 0.0])]  # fmt: skip
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
         else:
             k = 1 if isinstance(c, Orient) and c.rel is Rel.PERP else 3
-        return _GENERIC, k, [0, -1, -1, 0, 0, 0], zero
+        return [(_GENERIC, k, [0, -1, -1, 0, 0, 0], zero)]
 
     def _generic_rows(self) -> None:
         """The core's callback: rows of the general forms on the posture in ``solver.data``."""
@@ -784,7 +804,7 @@ class Plan:
         self.core.rows()
         for c, it in zip(self.cons, self.items):
             r = self.r[it.start:it.stop]
-            if it.scaled:
+            if it.scaled or isinstance(c, Look):
                 value = c.residual(self.s.kinematics())
             elif isinstance(c, Orient):
                 if c.rel is Rel.PERP:

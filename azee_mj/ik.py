@@ -373,10 +373,7 @@ class Solver:
             plan.collide = plan.problem.collide
         run = self._lm(start, plan, history, POSTURE)
         iters += run.iterations
-        # Within tolerance is enough when a polish follows: its steps back onto the
-        # constraints finish the convergence.
-        polish = plan.natural and self.naturalness is not None
-        if not run.done and not (run.met and polish):
+        if not run.done:
             run = self._lm(run.q, plan, history)
             iters += run.iterations
         if not run.met:

@@ -62,6 +62,7 @@ def run(names, solver, repeats=1):
         "ik_problems": r.stats.problems, "key_problems": r.stats.key_problems,
         "iterations": r.stats.iterations, "not_converged": r.stats.not_converged,
         "constraints_ok": int(sum(bool(t.ok) for t in r.traces)), "constraints": len(r.traces),
+        "ms_per_frame": 1e3 * best / len(r.time), "iterations_per_frame": r.stats.iterations / len(r.time),
     }
 
 
@@ -78,7 +79,8 @@ def main():
         r = rows[-1]
         print(f"{n:2d} signs {r['duration_s']:5.2f} s {r['blocks']:3d} blocks: {r['realize_s']:6.3f} s"
               f" ({r['realtime_factor']:5.1f}x real time), {r['ik_problems']} IK problems,"
-              f" {r['constraints_ok']}/{r['constraints']} ok")
+              f" {r['constraints_ok']}/{r['constraints']} ok, {r['ms_per_frame']:.2f} ms and"
+              f" {r['iterations_per_frame']:.1f} iterations per frame")
     d = np.array([r["duration_s"] for r in rows])
     c = np.array([r["realize_s"] for r in rows])
     fit = np.polyfit(d, c, 1)

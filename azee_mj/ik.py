@@ -211,6 +211,8 @@ class Solver:
             jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             if jid >= 0:
                 self.dof_weight[m.jnt_dofadr[jid]] = w
+        self._joint_info: dict[str, tuple[int, int, bool]] = {}
+        self._masks: dict[bytes, tuple[np.ndarray, np.ndarray] | None] = {}
         self.set_naturalness(naturalness)
 
     def set_naturalness(self, naturalness: Naturalness | None) -> None:
@@ -229,6 +231,17 @@ class Solver:
 
     def joint_id(self, name: str) -> int:
         return self.names.joint(name)
+
+    def joint_info(self, name: str) -> tuple[int, int, bool]:
+        """(qpos address, dof address, is a slide joint) of joint ``name`` (looked up once)."""
+        info = self._joint_info.get(name)
+        if info is None:
+            j = self.joint_id(name)
+            m = self.model
+            info = (int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]),
+                    bool(m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE))  # fmt: skip
+            self._joint_info[name] = info
+        return info
 
     def kinematics(self) -> Kinematics:
         """A :class:`~azee_mj.kinematics.Kinematics` on the posture in ``self.data``."""
@@ -269,12 +282,12 @@ class Solver:
         """Dof indices the solver moves for ``problem`` (sorted)."""
         m = self.model
         if problem.free_joints is not None:
-            dofs = {int(m.jnt_dofadr[self.joint_id(j)]) for j in problem.free_joints}
+            dofs = {self.joint_info(j)[1] for j in problem.free_joints}
         else:
             dofs = set()
             for c in problem.constraints:
                 if isinstance(c, JointTarget):
-                    dofs.add(int(m.jnt_dofadr[self.joint_id(c.joint)]))
+                    dofs.add(self.joint_info(c.joint)[1])
                 for b in self.bodies_of(c):
                     while b > 0:
                         a, n = m.body_dofadr[b], m.body_dofnum[b]
@@ -620,8 +633,6 @@ class Plan:
         self.items: list[RowBlock] = []
         self.prefer = solver.natural if problem.prefer is None else np.asarray(problem.prefer)
         self.cons = problem.constraints
-        self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE
-                      for c in problem.constraints if isinstance(c, JointTarget)}  # fmt: skip
         self.hard: list[tuple[int, int]] = []
         inv: list[float] = []
         ints: list[list[int]] = []
@@ -695,10 +706,28 @@ class Plan:
         more groups than bits."""
         m = self.m
         contype, conaff = m.geom_contype.copy(), m.geom_conaffinity.copy()
+        key = self.free.tobytes() + contype.tobytes() + conaff.tobytes()
+        if key not in self.s._masks:
+            self.s._masks[key] = self._rigid_masks(contype, conaff)
+        masks = self.s._masks[key]
+        if masks is None:
+            return lambda: None
+        m.geom_contype[:], m.geom_conaffinity[:] = masks
+
+        def restore():
+            m.geom_contype[:] = contype
+            m.geom_conaffinity[:] = conaff
+
+        return restore
+
+    def _rigid_masks(self, contype, conaff):
+        """(contype, conaffinity) with one bit per rigid group, or None (see
+        :meth:`mask_rigid_pairs`)."""
+        m = self.m
         active = (contype | conaff) != 0
         if not active.any() or not (np.all(contype[active] == 1) and
                                     np.all(conaff[active] == 1)):  # fmt: skip
-            return lambda: None
+            return None
         moving = np.zeros(m.nbody, bool)
         moving[m.dof_bodyid[self.free]] = True
         group = np.arange(m.nbody)
@@ -707,23 +736,19 @@ class Plan:
                 group[b] = group[m.body_parentid[b]]
         used, gid = np.unique(group[m.geom_bodyid[active]], return_inverse=True)
         if used.size > 31:
-            return lambda: None
+            return None
         bit = (1 << gid).astype(np.int32)
-        m.geom_contype[active] = bit
-        m.geom_conaffinity[active] = np.int32(0x7FFFFFFF) & ~bit
-
-        def restore():
-            m.geom_contype[:] = contype
-            m.geom_conaffinity[:] = conaff
-
-        return restore
+        ct, ca = contype.copy(), conaff.copy()
+        ct[active] = bit
+        ca[active] = np.int32(0x7FFFFFFF) & ~bit
+        return ct, ca
 
     def _compile(self, c, term_i: list[int], term_d: list[float]) -> list:
         """The core's blocks [(kind, rows, 6 ints [perp, id, id2, dof, first term, terms],
         11 floats [const 3, local 3, local2 3, value, 0])] of constraint ``c``; appends point
         terms to ``term_i`` (kind, id) / ``term_d`` (coefficient). A general form is one
         ``_GENERIC`` block."""
-        s, m = self.s, self.m
+        s = self.s
         zero = [0.0] * 11
 
         def terms_of(terms):
@@ -772,8 +797,8 @@ class Plan:
                 return eyes
             del term_i[2 * n_terms :], term_d[n_terms:]
         elif isinstance(c, JointTarget):
-            j = s.joint_id(c.joint)
-            return [(_JOINT, 1, [0, int(m.jnt_qposadr[j]), -1, int(m.jnt_dofadr[j]), 0, 0],
+            qadr, dof, _ = s.joint_info(c.joint)
+            return [(_JOINT, 1, [0, qadr, -1, dof, 0, 0],
                      [*zero[:9], float(c.value), 0.0])]  # fmt: skip
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
@@ -804,8 +829,11 @@ class Plan:
         self.core.rows()
         for c, it in zip(self.cons, self.items):
             r = self.r[it.start:it.stop]
-            if it.scaled or isinstance(c, Look):
+            if it.scaled:
                 value = c.residual(self.s.kinematics())
+            elif isinstance(c, Look):  # each eye's rows are a - v: the angle from |a - v|
+                eyes = np.sqrt((r.reshape(-1, 3) ** 2).sum(axis=1))
+                value = float(2.0 * np.arcsin(np.minimum(1.0, eyes / 2.0)).max())
             elif isinstance(c, Orient):
                 if c.rel is Rel.PERP:
                     value = float(np.arcsin(min(1.0, abs(r[0]))))
@@ -814,7 +842,7 @@ class Plan:
             else:
                 value = float(np.sqrt(r @ r))
             unit = "rad"
-            if isinstance(c, Place) or isinstance(c, JointTarget) and self.slide[c.joint]:
+            if isinstance(c, Place) or isinstance(c, JointTarget) and self.s.joint_info(c.joint)[2]:
                 unit = "m"
             out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
         return tuple(out), penetration_depth(m, d, self.joined)

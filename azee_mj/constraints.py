@@ -5,7 +5,9 @@ Every constraint follows one protocol (:class:`Constraint`): ``rows(k)`` gives r
 tolerance"; ``residual(k)`` its error in its own unit ([m] or [rad]); ``tol`` that tolerance;
 ``soft`` whether it may stay unmet without blocking convergence. ``k`` is a
 :class:`~azee_mj.kinematics.Kinematics` on the posture at hand. Self-collision adds one row
-per penetrating contact (:class:`Collisions`).
+per contact deeper than its body pair may go (``dist - floor``, Jacobian
+``n . (J2 - J1)`` at the contact point, from ``mj_collision``); the solver's compiled core
+(``azee_mj/_ikcore.c``) computes them.
 
 Orientations and gaze are rows of our own (for a world axis ``a = R u``: ``a - v`` along,
 ``a . v`` perpendicular, ``da/dq = -[a]x J_rot``).
@@ -147,61 +149,6 @@ class JointTarget:
     def residual(self, k: Kinematics) -> float:
         j = k.names.joint(self.joint)
         return abs(float(k.d.qpos[k.m.jnt_qposadr[j]]) - self.value)
-
-
-@dataclasses.dataclass(frozen=True)
-class CollisionRows:
-    """Rows of the contacts deeper than allowed: residual (c,), Jacobian (c, free), and the
-    deepest penetration [m] beyond what its body pair is allowed."""
-
-    r: np.ndarray
-    J: np.ndarray
-    depth: float
-
-
-class Collisions:
-    """Self-collision as rows: a one-sided penalty per contact reported by ``mj_collision``,
-    zero while the geoms are apart and ``depth / COLLISION_TOL`` when they penetrate.
-
-    ``floor`` (nbody, nbody) is the distance allowed per body pair (negative for pairs a
-    contact brings together, else 0); rows are over the dofs ``free``.
-    """
-
-    tol = COLLISION_TOL
-    soft = False
-
-    def __init__(self, model: mujoco.MjModel, floor: np.ndarray, free: np.ndarray):
-        self.m, self.floor, self.free = model, floor, free
-        self.j1, self.j2 = np.empty((3, model.nv)), np.empty((3, model.nv))
-
-    def rows(self, d: mujoco.MjData) -> CollisionRows | None:
-        """The rows on the posture in ``d`` (runs ``mj_collision``); None if no contact is
-        deeper than allowed."""
-        m, free = self.m, self.free
-        mujoco.mj_collision(m, d)
-        n = d.ncon
-        if not n:
-            return None
-        dist = d.contact.dist[:n]
-        geom = d.contact.geom[:n]
-        b1 = m.geom_bodyid[geom[:, 0]]
-        b2 = m.geom_bodyid[geom[:, 1]]
-        floor = self.floor[b1, b2]
-        hit = np.flatnonzero(dist < floor)
-        if not hit.size:
-            return None
-        # How far the worst contact goes past what its pair may (nothing for strangers,
-        # the contact allowance for parts a contact brings together).
-        depth = float((floor[hit] - dist[hit]).max())
-        normal = d.contact.frame[hit, :3]
-        pos = d.contact.pos[hit]
-        j1, j2 = self.j1, self.j2
-        rows = np.empty((hit.size, free.size))
-        for r_i, i in enumerate(hit):
-            mujoco.mj_jac(m, d, j1, None, pos[r_i], b1[i])
-            mujoco.mj_jac(m, d, j2, None, pos[r_i], b2[i])
-            rows[r_i] = normal[r_i] @ (j2 - j1)[:, free]
-        return CollisionRows((dist[hit] - floor[hit]) / COLLISION_TOL, rows / COLLISION_TOL, depth)
 
 
 def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> float:

@@ -30,11 +30,11 @@ from collections.abc import Callable, Mapping
 import mujoco
 import numpy as np
 
+from azee_mj import native
 from azee_mj.constraints import (
     COLLISION_TOL,
     CONTACT_ALLOWANCE,
     PENETRATION_LIMIT,
-    Collisions,
     Constraint,
     JointTarget,
     Look,
@@ -53,10 +53,8 @@ from azee_mj.kinematics import (
     Names,
     SitePos,
     Unit,
-    skew,
 )
 from azee_mj.natural import Effort, Naturalness
-from azee_mj.natural import rows as natural_rows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,6 +211,8 @@ class Solver:
             jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             if jid >= 0:
                 self.dof_weight[m.jnt_dofadr[jid]] = w
+        self._joint_info: dict[str, tuple[int, int, bool]] = {}
+        self._masks: dict[bytes, tuple[np.ndarray, np.ndarray] | None] = {}
         self.set_naturalness(naturalness)
 
     def set_naturalness(self, naturalness: Naturalness | None) -> None:
@@ -220,6 +220,7 @@ class Solver:
         self.naturalness = naturalness
         self.effort_dofs = (np.flatnonzero(naturalness.strength > 0) if naturalness is not None
                             else np.zeros(0, int))  # fmt: skip
+        self.effort = Effort(self.model, self.effort_dofs)
 
     # -- names ------------------------------------------------------------------------
     def site_id(self, name: str) -> int:
@@ -230,6 +231,17 @@ class Solver:
 
     def joint_id(self, name: str) -> int:
         return self.names.joint(name)
+
+    def joint_info(self, name: str) -> tuple[int, int, bool]:
+        """(qpos address, dof address, is a slide joint) of joint ``name`` (looked up once)."""
+        info = self._joint_info.get(name)
+        if info is None:
+            j = self.joint_id(name)
+            m = self.model
+            info = (int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]),
+                    bool(m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE))  # fmt: skip
+            self._joint_info[name] = info
+        return info
 
     def kinematics(self) -> Kinematics:
         """A :class:`~azee_mj.kinematics.Kinematics` on the posture in ``self.data``."""
@@ -270,12 +282,12 @@ class Solver:
         """Dof indices the solver moves for ``problem`` (sorted)."""
         m = self.model
         if problem.free_joints is not None:
-            dofs = {int(m.jnt_dofadr[self.joint_id(j)]) for j in problem.free_joints}
+            dofs = {self.joint_info(j)[1] for j in problem.free_joints}
         else:
             dofs = set()
             for c in problem.constraints:
                 if isinstance(c, JointTarget):
-                    dofs.add(int(m.jnt_dofadr[self.joint_id(c.joint)]))
+                    dofs.add(self.joint_info(c.joint)[1])
                 for b in self.bodies_of(c):
                     while b > 0:
                         a, n = m.body_dofadr[b], m.body_dofnum[b]
@@ -303,21 +315,11 @@ class Solver:
         return Plan(self, problem)
 
     def _evaluate(self, q, plan: Plan) -> Rows:
-        """The rows of ``plan`` on posture ``q``."""
-        m, d = self.model, self.data
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        r, J = plan.rows()
-        norms = [float(np.sqrt(r[a:b] @ r[a:b])) for a, b in plan.hard]
-        Jf = J[:, plan.free]
-        depth = 0.0
-        hits = plan.collisions.rows(d) if plan.collide else None
-        if hits is not None:
-            depth = hits.depth
-            r = np.concatenate([r, hits.r])
-            Jf = np.vstack([Jf, hits.J])
-        return Rows(r, Jf, norms, max(depth, 0.0))
+        """The rows of ``plan`` on posture ``q`` (computed by the compiled core)."""
+        r, J, norms, depth = plan.core.evaluate(np.ascontiguousarray(q, float), plan.collide)
+        r = np.frombuffer(r)
+        return Rows(r, np.frombuffer(J).reshape(r.size, plan.free.size),
+                    np.frombuffer(norms).tolist(), depth)  # fmt: skip
 
     # -- solve --------------------------------------------------------------------------
     def solve(self, problem: IKProblem, q0: np.ndarray | None = None) -> IKResult:
@@ -342,19 +344,23 @@ class Solver:
         # meets everything; the best attempt by one cost is kept.
         best = None
         iters = attempt = 0
-        for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
-            run = self._attempt(start, plan, history)
-            iters += run.iterations
-            if best is None or run.rank < best.rank:
-                best = run
-        restarts = self.restarts if problem.restarts is None else problem.restarts
-        while best.rank[0] and attempt < restarts:
-            attempt += 1
-            start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
-            run = self._attempt(start, plan, history, transparent_first=attempt == 1)
-            iters += run.iterations
-            if run.rank < best.rank:
-                best = run
+        masks = plan.mask_rigid_pairs()
+        try:
+            for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
+                run = self._attempt(start, plan, history)
+                iters += run.iterations
+                if best is None or run.rank < best.rank:
+                    best = run
+            restarts = self.restarts if problem.restarts is None else problem.restarts
+            while best.rank[0] and attempt < restarts:
+                attempt += 1
+                start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
+                run = self._attempt(start, plan, history, transparent_first=attempt == 1)
+                iters += run.iterations
+                if run.rank < best.rank:
+                    best = run
+        finally:
+            masks()
         q = best.q
         residuals, depth = plan.report(q)
         hard = [r for r, c in zip(residuals, cons) if not c.soft]
@@ -391,13 +397,11 @@ class Solver:
         return Attempt(q, (0, nat), iters + n_it)
 
     def _natural(self, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
-        r, J = natural_rows(self.naturalness, plan.effort, self.data, plan.free)
-        if not plan.problem.preferences:
-            return r, J
-        k = self.kinematics()
-        rows = [c.rows(k) for c in plan.problem.preferences]
-        return (np.concatenate([r, *(x for x, _ in rows)]),
-                np.vstack([J, *(j[:, plan.free] for _, j in rows)]))
+        """Naturalness rows (effort, comfort, preferences) and their Jacobian over the free
+        dofs on the posture in ``self.data`` (see :func:`azee_mj.natural.rows`)."""
+        r, J = plan.core.natural()
+        r = np.frombuffer(r)
+        return r, np.frombuffer(J).reshape(r.size, plan.free.size)
 
     def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
         """The most natural posture among those that meet the constraints, from ``q`` that
@@ -405,79 +409,23 @@ class Solver:
         constraint and collision rows (and of the joints at a limit the step would cross),
         each followed by steps back onto the constraints. A step is kept only if every
         constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
-        naturalness never bends a constraint. Returns (q, natural cost, iterations)."""
+        naturalness never bends a constraint. Returns (q, natural cost, iterations).
+
+        Compiled code (``azee_mj._ikcore``): the null space from LAPACK's SVD (singular
+        values under ``NULL_TOL`` of the largest), a trust radius from ``NATURAL_STEP``
+        doubling on success up to ``MAX_STEP`` and quartered on failure, at most
+        ``NATURAL_ITER`` steps, two stalls end it."""
         free = plan.free
         mov = np.flatnonzero(~plan.pinned)  # a joint target (a hand shape) pins its joint
         if self.naturalness is None or not mov.size:
             return q, 0.0, 0
-        lo, hi = plan.lower[free], plan.upper[free]
-        n = free.size
-        e = self._evaluate(q, plan)
-        rn, Jn = self._natural(plan)
-        nat = float(rn @ rn)
-        radius, stalls, it = NATURAL_STEP, 0, 0
-        res = np.zeros(n)
-        R = np.zeros((n, n + 7))
-        eye = np.eye(mov.size)
-        for it in range(1, NATURAL_ITER + 1):
-            Jm, Jnm = e.J[:, mov], Jn[:, mov]
-            Hn = Jnm.T @ Jnm
-            gn = Jnm.T @ rn
-            locked = np.zeros(mov.size, bool)
-            N = eye
-            for _ in range(3):
-                A = np.vstack([Jm, eye[locked]]) if locked.any() else Jm
-                if A.shape[0]:
-                    _, S, Vt = np.linalg.svd(A, full_matrices=True)
-                    k = int(np.sum(S > NULL_TOL * S[0])) if S.size and S[0] > 0 else 0
-                    N = Vt[k:].T
-                if not N.shape[1]:
-                    break
-                B = N.T @ Hn @ N
-                B[np.diag_indices_from(B)] += 1e-3 * (np.trace(B) / N.shape[1] + 1e-12)
-                step_m = N @ -np.linalg.solve(B, N.T @ gn)
-                qm = q[free[mov]] + step_m
-                out = (qm < lo[mov] - 1e-12) | (qm > hi[mov] + 1e-12)
-                if not (out & ~locked).any():
-                    break
-                locked |= out
-            if not N.shape[1]:
-                break
-            step = np.zeros(n)
-            step[mov] = step_m
-            big = float(np.abs(step).max())
-            if big > radius:
-                step *= radius / big
-            q_new = q.copy()
-            q_new[free] = np.clip(q[free] + step, lo, hi)
-            e_new = self._evaluate(q_new, plan)
-            for _ in range(2):  # back onto the constraints (the step is first-order)
-                if not e_new.r.size or max(e_new.norms, default=0.0) <= stop:
-                    break
-                H = e_new.J.T @ e_new.J
-                H[np.diag_indices(n)] += 1e-9 * (np.trace(H) / n + 1.0)
-                res[:] = 0.0
-                mujoco.mju_boxQP(res, R, None, H, e_new.J.T @ e_new.r, lo - q_new[free],
-                                 hi - q_new[free])  # fmt: skip
-                q_new[free] = np.clip(q_new[free] + res, lo, hi)
-                e_new = self._evaluate(q_new, plan)
-            rn_new, Jn_new = self._natural(plan)
-            nat_new = float(rn_new @ rn_new)
-            # never further from a constraint than the polish started, nor deeper
-            bound = max(stop, max(e.norms, default=0.0))
-            ok = max(e_new.norms, default=0.0) <= bound and e_new.depth <= max(e.depth, 1e-5)
-            if ok and nat_new < nat:
-                gain = (nat - nat_new) / max(nat, 1e-12)
-                q, e, rn, Jn, nat = q_new, e_new, rn_new, Jn_new, nat_new
-                radius = min(2.0 * radius, MAX_STEP)
-                stalls = stalls + 1 if gain < 1e-3 else 0
-            else:
-                radius *= 0.25
-                stalls += 1 if radius < 1e-3 else 0
-            history.append(float(e.r @ e.r))
-            if stalls >= 2:
-                break
-        return q, nat, it
+        q_out, nat, it, hist = plan.core.polish(
+            np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
+            mov.astype(np.int32), float(stop), plan.collide, NATURAL_ITER, NATURAL_STEP,
+            NULL_TOL, MAX_STEP,
+        )  # fmt: skip
+        history.extend(hist)
+        return np.frombuffer(q_out).copy(), nat, it
 
     def _restart_point(self, attempt, q_start, free):
         """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
@@ -498,69 +446,22 @@ class Solver:
 
     def _lm(self, q, plan, history, posture=0.0, stop=0.05) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
-        ``posture * (q - natural)`` weighted per dof; ``done`` when every constraint row norm is
-        under ``stop`` (its tolerance fraction)."""
+        ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
+        under ``stop`` (its tolerance fraction).
+
+        The run is compiled code (``azee_mj._ikcore``): damping relative to the mean diagonal
+        of ``J^T J`` (``MU0``) times the joint weights, steps from ``mju_boxQP`` inside the
+        joint ranges and a ``MAX_STEP`` trust region, Nielsen's damping update; it stops when
+        done, after three steps of little gain (one with the guide on), or when the damping
+        or the step vanish."""
         free = plan.free
-        lo, hi = plan.lower[free], plan.upper[free]
-        w = self.dof_weight[free]
-        nat = plan.prefer[free]
-        q = q.copy()
-        e = self._evaluate(q, plan)
-        r, J, norms, depth = e.r, e.J, e.norms, e.depth
-        cost = float(r @ r)
-        if posture:
-            cost += posture**2 * float(w @ (q[free] - nat) ** 2)
-        mu, nu = MU0, 2.0
-        stalls = 0
-        diag = np.diag_indices(free.size)
-        n = free.size
-        res = np.zeros(n)
-        R = np.zeros((n, n + 7))
-        it = 0
-        for it in range(1, self.max_iter + 1):
-            if max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL:
-                return LMRun(q, cost, True, it - 1, True)
-            H = J.T @ J
-            g = J.T @ r
-            if posture:
-                # The mild preference for the natural posture: rows posture * (q - natural).
-                H[diag] += posture**2 * w
-                g += posture**2 * w * (q[free] - nat)
-            Hd = H.copy()
-            Hd[diag] += mu * (np.trace(H) / n + 1.0) * w
-            res[:] = 0.0
-            lo_step = np.maximum(lo - q[free], -MAX_STEP)
-            hi_step = np.minimum(hi - q[free], MAX_STEP)
-            mujoco.mju_boxQP(res, R, None, Hd, g, lo_step, hi_step)
-            q_new = q.copy()
-            q_new[free] = np.clip(q[free] + res, lo, hi)
-            e = self._evaluate(q_new, plan)
-            r_new, J_new, norms_new, depth_new = e.r, e.J, e.norms, e.depth
-            cost_new = float(r_new @ r_new)
-            if posture:
-                cost_new += posture**2 * float(w @ (q_new[free] - nat) ** 2)
-            if cost_new < cost:
-                gain = (cost - cost_new) / cost
-                # Nielsen's update from the ratio of actual to predicted decrease.
-                predicted = -(2.0 * g @ res + res @ H @ res)
-                rho = (cost - cost_new) / predicted if predicted > 0 else 0.0
-                q, r, J, norms, depth, cost = q_new, r_new, J_new, norms_new, depth_new, cost_new
-                mu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-7)
-                nu = 2.0
-                history.append(cost)
-                if gain < (0.02 if posture else 1e-3):
-                    stalls += 1
-                    if posture or stalls >= 3:
-                        break  # preference done (polish without it), or stuck in a minimum
-            else:
-                mu *= nu
-                nu *= 2.0
-                history.append(cost)
-            if mu > 1e3 or float(res @ res) < 1e-20:
-                break
-        done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
-        met = max(norms, default=0.0) <= 1.0 and depth <= 2 * COLLISION_TOL
-        return LMRun(q, cost, done, it, done or met)
+        q_out, cost, done, it, met, hist = plan.core.lm(
+            np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
+            self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
+            float(posture), float(stop), int(self.max_iter), plan.collide,
+        )  # fmt: skip
+        history.extend(hist)
+        return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))
 
     # -- equality constraints --------------------------------------------------------------
     def configure_equalities(self, problem: IKProblem, data: mujoco.MjData | None = None) -> int:
@@ -643,23 +544,76 @@ class Attempt:
     iterations: int
 
 
+#: Row block kinds of the compiled core (azee_mj/_ikcore.c).
+_POINT, _ORIENT, _JOINT, _GENERIC = 0, 1, 2, 3
+#: Terms of a point target.
+_SITE, _BODY = 0, 1
+
+
+def _flat_point(e, coef: float = 1.0):
+    """``e`` as (constant (3,), [(coef, kind, name)]) if it is a linear combination of
+    constants, sites and body origins, else None."""
+    if isinstance(e, Const):
+        return coef * np.asarray(e.value, float), []
+    if isinstance(e, SitePos):
+        return np.zeros(3), [(coef, _SITE, e.site)]
+    if isinstance(e, BodyOrigin):
+        return np.zeros(3), [(coef, _BODY, e.body)]
+    if isinstance(e, Lin):
+        const, terms = np.zeros(3), []
+        for c, t in e.terms:
+            f = _flat_point(t, coef * c)
+            if f is None:
+                return None
+            const += f[0]
+            terms += f[1]
+        return const, terms
+    return None
+
+
+def _axis_target(e):
+    """``Unit(e)`` for the core: ("const", unit vector), ("axis", body, unit local, sign) for
+    a scaled body axis, or ("point", constant, terms) for a linear combination of constants,
+    sites and body origins (see :func:`_flat_point`); None for other forms."""
+    if isinstance(e, Lin) and len(e.terms) == 1:
+        c, t = e.terms[0]
+        f = _axis_target(t)
+        if f is not None and c != 0.0 and f[0] == "axis":
+            return "axis", f[1], f[2], f[3] * np.sign(c)
+    if isinstance(e, BodyAxis):
+        loc = np.asarray(e.local, float)
+        n = np.linalg.norm(loc)
+        return ("axis", e.body, loc / n, 1.0) if n >= 1e-12 else None
+    flat = _flat_point(e)
+    if flat is None:
+        return None
+    const, terms = flat
+    if terms:
+        return "point", const, terms
+    n = np.linalg.norm(const)
+    return "const", (const / n if n >= 1e-12 else np.zeros(3))
+
+
 @dataclasses.dataclass(frozen=True)
 class RowBlock:
-    """One constraint's rows in a plan: ``fn(r_block, J_block)`` writes rows
-    ``[start, stop)``; ``scaled`` when they come already divided by the tolerance."""
+    """One constraint's rows in a plan, ``[start, stop)``; ``scaled`` when they come already
+    divided by the tolerance (the general forms, written by the expression evaluator)."""
 
-    fn: Callable[[np.ndarray, np.ndarray], None]
     start: int
     stop: int
     scaled: bool
 
 
 class Plan:
-    """A problem compiled for one solver: ids resolved, row blocks laid out, buffers made.
+    """A problem compiled for one solver: ids resolved, row blocks laid out, buffers made,
+    and the compiled core (``azee_mj._ikcore.Core``) that evaluates them and runs the
+    iteration.
 
-    Common constraint forms (a placement at a fixed point or on another site, an
-    orientation toward a fixed vector, a joint target) write their rows straight from
-    ``mj_jacSite`` / ``mj_jacBody``; other forms go through the expression evaluator.
+    The core writes the rows of the common forms itself from ``mj_jacSite`` /
+    ``mj_jacBody``: a placement at a linear combination of fixed points, sites and body
+    origins; an orientation toward a fixed vector or a body axis (along, opposite,
+    perpendicular); a joint target. Other forms (a look, a computed vector) it asks of the
+    expression evaluator (:meth:`Constraint.rows`).
     """
 
     def __init__(self, solver: Solver, problem: IKProblem):
@@ -672,102 +626,196 @@ class Plan:
             # An attempt is done within 2 COLLISION_TOL of the floor: within the allowance.
             self.floor[a, b] = -(CONTACT_ALLOWANCE - 2 * COLLISION_TOL)
         self.lower, self.upper = solver.lower, solver.upper
-        self.effort = Effort(m, solver.effort_dofs)
+        self.effort = solver.effort
         self.natural = problem.natural
         self.problem = problem
         self.collide = problem.collide
         self.items: list[RowBlock] = []
         self.prefer = solver.natural if problem.prefer is None else np.asarray(problem.prefer)
         self.cons = problem.constraints
-        self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE
-                      for c in problem.constraints if isinstance(c, JointTarget)}  # fmt: skip
         self.hard: list[tuple[int, int]] = []
         inv: list[float] = []
+        ints: list[list[int]] = []
+        dbls: list[list[float]] = []
+        term_i: list[int] = []
+        term_d: list[float] = []
+        self.generic: list[tuple[Constraint, int, int]] = []
+        hard: list[int] = []
         row = 0
+        pinned = set()
         for c in problem.constraints:
-            fn, k, scaled = self._compile(c)
-            self.items.append(RowBlock(fn, row, row + k, scaled))
+            blocks = self._compile(c, term_i, term_d)
+            k = sum(x[1] for x in blocks)
+            generic = blocks[0][0] == _GENERIC
+            if generic:
+                self.generic.append((c, row, row + k))
+            self.items.append(RowBlock(row, row + k, generic))
             if not c.soft:
                 self.hard.append((row, row + k))
-            inv += [1.0 if scaled else 1.0 / c.tol] * k
+                hard += [row, row + k]
+            start = row
+            for kind, kb, i, x in blocks:
+                if kind == _JOINT:
+                    pinned.add(i[3])
+                ints.append([kind, start, kb, 0 if c.soft else 1, *i])
+                dbls.append(x)
+                start += kb
+            inv += [1.0 if generic else 1.0 / c.tol] * k
             row += k
         self.inv = np.array(inv)
         self.J = np.zeros((row, m.nv))
         self.r = np.zeros(row)
-        self.tmp = np.empty((3, m.nv))
-        self.collisions = Collisions(m, self.floor, self.free)
-        pinned = set()
-        for c, item in zip(problem.constraints, self.items):
-            if isinstance(c, JointTarget):
-                dof = int(m.jnt_dofadr[solver.joint_id(c.joint)])
-                self.J[item.start, dof] = 1.0
-                pinned.add(dof)
+        self.core = native.core().Core(
+            m._address, self.d._address, (m, self.d),
+            np.array(ints, np.int32).reshape(-1), np.array(dbls, float).reshape(-1),
+            np.array(term_i, np.int32), np.array(term_d, float), self.inv,
+            self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
+            self._generic_rows if self.generic else None, np.array(hard, np.int32),
+        )  # fmt: skip
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         self.pinned = np.isin(self.free, sorted(pinned))
+        nat = solver.naturalness
+        if nat is not None:
+            prefs = problem.preferences
+            k = sum(c.rows(solver.kinematics())[0].size for c in prefs) if prefs else 0
+            self.pref_r, self.pref_J = np.zeros(k), np.zeros((k, m.nv))
+            edof = self.effort.dofs
+            self.core.set_natural(
+                edof.astype(np.int32), np.sqrt(nat.effort_weight) / nat.strength[edof],
+                np.ascontiguousarray(nat.comfort, float), np.ascontiguousarray(nat.neutral, float),
+                self.effort.anc_u8, self.pref_r, self.pref_J,
+                self._preference_rows if k else None,
+            )  # fmt: skip
 
-    def _compile(self, c):
-        """(fn(r_block, J_block), number of rows, rows already scaled by 1/tol)."""
-        s, m, d = self.s, self.m, self.d
-        if isinstance(c, Place) and isinstance(c.target, (Const, SitePos)):
-            sid = s.site_id(c.site)
-            if isinstance(c.target, Const):
-                t = np.asarray(c.target.value, float)
+    def _preference_rows(self) -> None:
+        """The core's callback: the preferences' rows on the posture in ``solver.data``."""
+        k, row = self.s.kinematics(), 0
+        for c in self.problem.preferences:
+            r, J = c.rows(k)
+            self.pref_r[row : row + r.size], self.pref_J[row : row + r.size] = r, J
+            row += r.size
 
-                def place(r, J):
-                    mujoco.mj_jacSite(m, d, J, None, sid)
-                    r[:] = d.site_xpos[sid] - t
+    def mask_rigid_pairs(self) -> Callable[[], None]:
+        """Keep ``mj_collision`` off the geom pairs that cannot move relative to each other
+        (no free dof between their bodies: within a hand whose shape is fixed, within the
+        unmoved rest of the body); returns the function that restores the model.
 
-                return place, 3, False
-            sid2 = s.site_id(c.target.site)
+        Bodies joined without a free dof form one rigid group; each group gets its own
+        ``contype`` bit and every other bit as ``conaffinity``, so geoms collide only with
+        other groups. Left as it is when the model uses other collision masks or there are
+        more groups than bits."""
+        m = self.m
+        contype, conaff = m.geom_contype.copy(), m.geom_conaffinity.copy()
+        key = self.free.tobytes() + contype.tobytes() + conaff.tobytes()
+        if key not in self.s._masks:
+            self.s._masks[key] = self._rigid_masks(contype, conaff)
+        masks = self.s._masks[key]
+        if masks is None:
+            return lambda: None
+        m.geom_contype[:], m.geom_conaffinity[:] = masks
 
-            def contact(r, J):
-                mujoco.mj_jacSite(m, d, J, None, sid)
-                mujoco.mj_jacSite(m, d, self.tmp, None, sid2)
-                J -= self.tmp
-                r[:] = d.site_xpos[sid] - d.site_xpos[sid2]
+        def restore():
+            m.geom_contype[:] = contype
+            m.geom_conaffinity[:] = conaff
 
-            return contact, 3, False
-        if isinstance(c, Orient) and isinstance(c.vector, Const):
-            bid = s.body_id(c.body)
-            local = np.asarray(c.local, float)
-            v = np.asarray(c.vector.value, float)
-            v = v / np.linalg.norm(v) * (-1.0 if c.rel is Rel.OPP else 1.0)
-            perp = c.rel is Rel.PERP
+        return restore
 
-            def orient(r, J):
-                mujoco.mj_jacBody(m, d, None, self.tmp, bid)
-                a = d.xmat[bid].reshape(3, 3) @ local
-                da = skew(-a) @ self.tmp  # da/dq = -[a]x J_rot
-                if perp:
-                    r[0] = a @ v
-                    J[0] = v @ da
-                else:
-                    r[:] = a - v
-                    J[:] = da
+    def _rigid_masks(self, contype, conaff):
+        """(contype, conaffinity) with one bit per rigid group, or None (see
+        :meth:`mask_rigid_pairs`)."""
+        m = self.m
+        active = (contype | conaff) != 0
+        if not active.any() or not (np.all(contype[active] == 1) and
+                                    np.all(conaff[active] == 1)):  # fmt: skip
+            return None
+        moving = np.zeros(m.nbody, bool)
+        moving[m.dof_bodyid[self.free]] = True
+        group = np.arange(m.nbody)
+        for b in range(1, m.nbody):  # parents come before children
+            if not moving[b]:
+                group[b] = group[m.body_parentid[b]]
+        used, gid = np.unique(group[m.geom_bodyid[active]], return_inverse=True)
+        if used.size > 31:
+            return None
+        bit = (1 << gid).astype(np.int32)
+        ct, ca = contype.copy(), conaff.copy()
+        ct[active] = bit
+        ca[active] = np.int32(0x7FFFFFFF) & ~bit
+        return ct, ca
 
-            return orient, 1 if perp else 3, False
-        if isinstance(c, JointTarget):
-            adr = m.jnt_qposadr[s.joint_id(c.joint)]
-            value = c.value
+    def _compile(self, c, term_i: list[int], term_d: list[float]) -> list:
+        """The core's blocks [(kind, rows, 6 ints [perp, id, id2, dof, first term, terms],
+        11 floats [const 3, local 3, local2 3, value, 0])] of constraint ``c``; appends point
+        terms to ``term_i`` (kind, id) / ``term_d`` (coefficient). A general form is one
+        ``_GENERIC`` block."""
+        s = self.s
+        zero = [0.0] * 11
 
-            def joint(r, J):
-                r[0] = d.qpos[adr] - value
+        def terms_of(terms):
+            t0 = len(term_d)
+            for coef, kind, name in terms:
+                term_i.extend([kind, s.site_id(name) if kind == _SITE else s.body_id(name)])
+                term_d.append(coef)
+            return t0, len(terms)
 
-            return joint, 1, False
+        def orient(body, local, rel, vector):
+            tgt = _axis_target(vector)
+            if tgt is None:
+                return None
+            perp = 1 if rel is Rel.PERP else 0
+            sign = -1.0 if rel is Rel.OPP else 1.0
+            local = [float(x) for x in local]
+            k = 1 if perp else 3
+            bid = s.body_id(body)
+            if tgt[0] == "const":
+                return (_ORIENT, k, [perp, bid, -1, 0, 0, 0],
+                        [*(sign * tgt[1]), *local, *zero[:5]])  # fmt: skip
+            if tgt[0] == "axis":
+                _, b2, loc2, sgn = tgt
+                return (_ORIENT, k, [perp, bid, s.body_id(b2), 0, 0, 0],
+                        [0.0, 0.0, 0.0, *local, *loc2, sign * sgn, 0.0])  # fmt: skip
+            _, const, terms = tgt
+            return (_ORIENT, k, [perp, bid, -1, 0, *terms_of(terms)],
+                    [*const, *local, 0.0, 0.0, 0.0, sign, 0.0])  # fmt: skip
+
+        if isinstance(c, Place):
+            flat = _flat_point(c.target)
+            if flat is not None:
+                const, terms = flat
+                return [(_POINT, 3, [0, s.site_id(c.site), -1, 0, *terms_of(terms)],
+                         [*const, *zero[3:]])]  # fmt: skip
+        elif isinstance(c, Orient):
+            b = orient(c.body, c.local, c.rel, c.vector)
+            if b is not None:
+                return [b]
+        elif isinstance(c, Look):
+            n_terms = len(term_d)
+            eyes = [orient(body, local, Rel.ALONG,
+                           Lin(((1.0, c.target), (-1.0, BodyOrigin(body)))))
+                    for body, local in c.eyes]  # fmt: skip
+            if all(b is not None for b in eyes):
+                return eyes
+            del term_i[2 * n_terms :], term_d[n_terms:]
+        elif isinstance(c, JointTarget):
+            qadr, dof, _ = s.joint_info(c.joint)
+            return [(_JOINT, 1, [0, qadr, -1, dof, 0, 0],
+                     [*zero[:9], float(c.value), 0.0])]  # fmt: skip
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
         else:
             k = 1 if isinstance(c, Orient) and c.rel is Rel.PERP else 3
+        return [(_GENERIC, k, [0, -1, -1, 0, 0, 0], zero)]
 
-        def generic(r, J):
-            r[:], J[:] = c.rows(s.kinematics())
-
-        return generic, k, True
+    def _generic_rows(self) -> None:
+        """The core's callback: rows of the general forms on the posture in ``solver.data``."""
+        k = self.s.kinematics()
+        for c, a, b in self.generic:
+            self.r[a:b], self.J[a:b] = c.rows(k)
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``."""
-        for it in self.items:
-            it.fn(self.r[it.start:it.stop], self.J[it.start:it.stop])
+        """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``
+        (after ``mj_kinematics`` and ``mj_comPos``)."""
+        self.core.rows()
         return self.r * self.inv, self.J * self.inv[:, None]
 
     def report(self, q: np.ndarray) -> tuple[tuple[Residual, ...], float]:
@@ -778,11 +826,14 @@ class Plan:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         out = []
+        self.core.rows()
         for c, it in zip(self.cons, self.items):
-            it.fn(self.r[it.start:it.stop], self.J[it.start:it.stop])
             r = self.r[it.start:it.stop]
             if it.scaled:
                 value = c.residual(self.s.kinematics())
+            elif isinstance(c, Look):  # each eye's rows are a - v: the angle from |a - v|
+                eyes = np.sqrt((r.reshape(-1, 3) ** 2).sum(axis=1))
+                value = float(2.0 * np.arcsin(np.minimum(1.0, eyes / 2.0)).max())
             elif isinstance(c, Orient):
                 if c.rel is Rel.PERP:
                     value = float(np.arcsin(min(1.0, abs(r[0]))))
@@ -791,7 +842,7 @@ class Plan:
             else:
                 value = float(np.sqrt(r @ r))
             unit = "rad"
-            if isinstance(c, Place) or isinstance(c, JointTarget) and self.slide[c.joint]:
+            if isinstance(c, Place) or isinstance(c, JointTarget) and self.s.joint_info(c.joint)[2]:
                 unit = "m"
             out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
         return tuple(out), penetration_depth(m, d, self.joined)

@@ -26,6 +26,8 @@ import dataclasses
 import mujoco
 import numpy as np
 
+from azee_mj import native
+
 
 @dataclasses.dataclass(frozen=True)
 class Naturalness:
@@ -73,13 +75,13 @@ class Effort:
                 anc[k, i] = True
                 k = m.dof_parentid[k]
         self.anc = anc
-        self.g = np.asarray(m.opt.gravity, float)
+        #: ``anc`` as bytes for the compiled core.
+        self.anc_u8 = anc.astype(np.uint8)
+        self._dofs32 = self.dofs.astype(np.int32)
 
     def torques(self, d: mujoco.MjData) -> np.ndarray:
         """(len(dofs),) gravity torque each dof holds [N m]."""
-        a = d.xaxis[self.jnt]
-        r = d.subtree_com[self.body] - d.xanchor[self.jnt]
-        return self.mass * np.einsum("ij,ij->i", a, np.cross(r, self.g))
+        return self._eval(d, np.zeros(0, np.int32))[0]
 
     def jacobian(self, d: mujoco.MjData, cols: np.ndarray) -> np.ndarray:
         """(len(dofs), len(cols)) derivative of :meth:`torques` with respect to ``qpos[cols]``.
@@ -88,19 +90,14 @@ class Effort:
         rigidly: ``d tau_i = M_i a_k . (a_i x (r_i x g) + r_i x (g x a_i))``. For k below i,
         only i's carried centre of mass moves: ``d tau_i = M_k (a_k x r_k) . (g x a_i)``.
         """
-        m, g = self.m, self.g
-        cols = np.asarray(cols, int)
-        a = d.xaxis[self.jnt]
-        r = d.subtree_com[self.body] - d.xanchor[self.jnt]
-        u = np.cross(a, np.cross(r, g)) + np.cross(r, np.cross(g, a))
-        ak = d.xaxis[m.dof_jntid[cols]]
-        rk = d.subtree_com[m.dof_bodyid[cols]] - d.xanchor[m.dof_jntid[cols]]
-        mk = m.body_subtreemass[m.dof_bodyid[cols]]
-        above = self.anc[np.ix_(cols, self.dofs)].T  # (rows, cols): col k above-or-at row i
-        below = self.anc[np.ix_(self.dofs, cols)] & ~above  # row i strictly above col k
-        up = self.mass[:, None] * (u @ ak.T)
-        down = (np.cross(ak, rk) * mk[:, None]) @ np.cross(g, a).T  # (cols, rows)
-        return np.where(above, up, 0.0) + np.where(below, down.T, 0.0)
+        cols = np.asarray(cols, np.int32)
+        return self._eval(d, cols)[1].reshape(self.dofs.size, cols.size)
+
+    def _eval(self, d: mujoco.MjData, cols: np.ndarray):
+        # The solver's compiled core computes both (its polish uses the same code).
+        tau, J = native.core().effort(self.m._address, d._address, self._dofs32, self.anc_u8,
+                                      np.ascontiguousarray(cols, np.int32))  # fmt: skip
+        return np.frombuffer(tau), np.frombuffer(J)
 
 
 def rows(nat: Naturalness, effort: Effort, d: mujoco.MjData, cols: np.ndarray):

@@ -65,6 +65,8 @@ def run(names, solver, repeats=1):
         "iterations": r.stats.iterations, "not_converged": r.stats.not_converged,
         "constraints_ok": int(sum(bool(t.ok) for t in r.traces)), "constraints": len(r.traces),
         **naturalness(r, solver),
+        "ms_per_frame": 1e3 * best / len(r.time),
+        "iterations_per_frame": r.stats.iterations / len(r.time),
     }
 
 
@@ -103,7 +105,8 @@ def main():
         r = rows[-1]
         print(f"{n:2d} signs {r['duration_s']:5.2f} s {r['blocks']:3d} blocks: {r['realize_s']:6.3f} s"
               f" ({r['realtime_factor']:5.1f}x real time), {r['ik_problems']} IK problems,"
-              f" {r['constraints_ok']}/{r['constraints']} ok, fastest joint"
+              f" {r['constraints_ok']}/{r['constraints']} ok, {r['ms_per_frame']:.2f} ms and"
+              f" {r['iterations_per_frame']:.1f} iterations per frame, fastest joint"
               f" {r['max_joint_speed']:.1f} rad/s, trunk / head up to {r['worst_trunk_deg']:.1f} /"
               f" {r['worst_head_deg']:.1f} deg")
     d = np.array([r["duration_s"] for r in rows])

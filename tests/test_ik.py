@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from azee_mj import constraints as cn
-from azee_mj import ik
+from azee_mj import ik, native, natural
 from azee_mj import kinematics as kin
 from azee_mj.check import check_poses
 from azee_mj.schedule import make_solver
@@ -53,6 +53,18 @@ CONSTRAINTS = [
               kin.Unit(kin.Cross(kin.BodyAxis("f_arm_L", FARM_L.dir), kin.Const((0, 0, 1.0))))),
     cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.SitePos("I_TIP_R")),
     cn.JointTarget("index_R_1_flex", 0.5),
+    # forms the compiled core writes itself besides the ones above
+    cn.Orient("index_R_1", (0, 0, -1.0), cn.Rel.ALONG,
+              kin.Lin(((1.0, kin.SitePos("I_TIP_L")), (-1.0, kin.SitePos("WR_R"))))),
+    cn.Orient("palm_R", PALM_R.nrm, cn.Rel.PERP,
+              kin.Lin(((0.5, kin.SitePos("PA_L")), (0.5, kin.SitePos("CH")),
+                       (-1.0, kin.BodyOrigin("palm_R")), (1.0, kin.Const((0.0, 0.1, 0.0)))))),
+    cn.Orient("palm_R", PALM_R.dir, cn.Rel.OPP, kin.Lin(((-2.0, kin.BodyAxis("f_arm_L", FARM_L.dir)),))),
+    cn.Orient("palm_R", PALM_R.dir, cn.Rel.ALONG,
+              kin.Lin(((1.0, kin.Const((0.0, 0.0, 1.0))), (1.0, kin.Const((0.6, 0.0, 0.0)))))),
+    cn.Place("I_TIP_R", kin.Lin(((0.5, kin.SitePos("PA_L")), (0.5, kin.BodyOrigin("head")),
+                                 (1.0, kin.Const((0.0, 0.05, 0.0)))))),
+    cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.Const((0.4, 0.1, 0.3))),
 ]
 
 
@@ -74,9 +86,10 @@ def test_jacobian_matches_finite_differences(solver, c):
     np.testing.assert_allclose(J, fd, atol=1e-4 * scale)
 
 
-@pytest.mark.parametrize("c", CONSTRAINTS[:9], ids=lambda c: type(c).__name__)
+@pytest.mark.parametrize("c", CONSTRAINTS, ids=lambda c: type(c).__name__)
 def test_fast_rows_equal_expression_rows(solver, c):
-    """The compiled fast paths give the same rows as the general expression evaluator."""
+    """The compiled core's rows equal those of the general expression evaluator
+    (:meth:`Constraint.rows` on :class:`~azee_mj.kinematics.Kinematics`)."""
     q = _random_arm_posture(solver, np.random.default_rng(4))
     plan = solver.plan(ik.IKProblem((c,)))
     _fk(solver, q)
@@ -193,3 +206,92 @@ def test_pose_check_finds_a_penetration_made_on_purpose(solver):
     assert report.penetrations[0].depth > 1e-3
     assert any("arm_R" in p.geom1 + p.geom2 or "f_arm_R" in p.geom1 + p.geom2
                for p in report.penetrations)
+
+
+def test_compiled_constants_are_the_solvers():
+    core = native.core()
+    assert (core.MU0, core.MAX_STEP, core.COLLISION_TOL) == (ik.MU0, ik.MAX_STEP, cn.COLLISION_TOL)
+
+
+def _penetrating_posture(solver, depth=0.01):
+    """The right hand pushed ``depth`` [m] into the chest: several collision rows."""
+    d = _fk(solver, solver.natural)
+    chest = d.site_xpos[solver.site_id("CH")].copy()
+    res = solver.solve(ik.IKProblem((cn.Place("PA_R", kin.Const(tuple(chest + [-depth, 0, 0]))),),
+                                    DEFAULT_MAP.tracks["arm_R"], collide=False), solver.natural)
+    return res.qpos
+
+
+def test_collision_rows_match_finite_differences(solver):
+    """Each collision row is d(dist)/dq / COLLISION_TOL of its contact over the free dofs,
+    checked where MuJoCo's distance is smooth (capsule and sphere pairs; ellipsoids go
+    through GJK/EPA and boxes have edges)."""
+    q = _penetrating_posture(solver, 0.002)
+    m, d = solver.model, solver.data
+    plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
+    r0, J0, _, depth = plan.core.evaluate(q, True)
+    r0 = np.frombuffer(r0)
+    J0 = np.frombuffer(J0).reshape(r0.size, plan.free.size)
+    hits = np.flatnonzero(d.contact.dist[: d.ncon] < 0)  # no pair may touch: floor 0
+    assert hits.size == r0.size and depth > 0
+    np.testing.assert_allclose(r0, d.contact.dist[hits] / cn.COLLISION_TOL)
+    smooth = (int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE))
+    rows = [i for i, c in enumerate(hits) if all(m.geom_type[g] in smooth for g in d.contact.geom[c])]
+    assert len(rows) >= 2
+    eps = 1e-7
+    fd = np.zeros((len(rows), plan.free.size))
+    for k, dof in enumerate(plan.free):
+        dq = q.copy()
+        dq[dof] += eps
+        r1 = np.frombuffer(plan.core.evaluate(dq, True)[0])
+        assert r1.size == r0.size
+        fd[:, k] = (r1[rows] - r0[rows]) / eps
+    np.testing.assert_allclose(J0[rows], fd, atol=1e-3 * np.abs(J0[rows]).max())
+
+
+def test_rigid_pairs_are_left_out_of_collision_detection(solver):
+    """With a hand shape fixed, no contact is reported between bodies that no free dof
+    moves apart, and every other contact still is."""
+    q = _penetrating_posture(solver)
+    m, d = solver.model, solver.data
+    plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
+
+    def pairs():
+        _fk(solver, q)
+        mujoco.mj_collision(m, d)
+        return {tuple(sorted(m.geom_bodyid[g])) for g in d.contact.geom[: d.ncon]}
+
+    everything = pairs()
+    restore = plan.mask_rigid_pairs()
+    try:
+        masked = pairs()
+    finally:
+        restore()
+    moving = set(m.dof_bodyid[plan.free])
+
+    def rigid(a, b):  # no free dof on the tree path between bodies a and b
+        def chain(x):
+            out = []
+            while x > 0:
+                out.append(x)
+                x = m.body_parentid[x]
+            return out
+
+        ca, cb = chain(a), chain(b)
+        return not (set(ca) ^ set(cb)) & moving
+
+    assert masked == {p for p in everything if not rigid(*p)}
+    assert any(rigid(*p) for p in everything)
+    assert pairs() == everything  # restored
+
+
+def test_compiled_natural_rows_equal_the_objective(solver):
+    """The core's naturalness rows are :func:`azee_mj.natural.rows` over the free dofs."""
+    q = _random_arm_posture(solver, np.random.default_rng(11))
+    plan = solver.plan(ik.IKProblem((cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))),)))
+    d = _fk(solver, q)
+    r, J = plan.core.natural()
+    r = np.frombuffer(r)
+    rp, Jp = natural.rows(solver.naturalness, plan.effort, d, plan.free)
+    np.testing.assert_allclose(r, rp, atol=1e-12)
+    np.testing.assert_allclose(np.frombuffer(J).reshape(r.size, -1), Jp, atol=1e-12)

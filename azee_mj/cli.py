@@ -83,6 +83,7 @@ class _Progress:
 
 
 def _cmd_realize(args) -> int:
+    from azee_mj.batch import summary_lines
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
@@ -90,19 +91,46 @@ def _cmd_realize(args) -> int:
 
     if args.fps <= 0:
         raise AzeeError(f"--fps must be positive, got {args.fps}")
-    score = load_score(args.score)
+    if args.jobs is not None and args.jobs < 1:
+        raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
+    if len(args.score) > 1 or Path(args.score[0]).is_dir() or _is_dir(args.output):
+        return _realize_many(args)
+    score = load_score(args.score[0])
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
     save_rollout(args.output, rollout)
     if args.report:
         save_json(args.report, rollout.report())
-    s = rollout.stats
-    bad = [t for t in rollout.traces if not t.ok]
-    print(f"{args.output}: {len(rollout.time)} frames at {args.fps:g} fps, {s.problems} IK "
-          f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
-          f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within tolerance")
-    for t in bad[:5]:
-        print(f"  {t.describe()}")
+    print("\n".join(summary_lines(args.output, rollout, args.fps)))
     return 0
+
+
+def _is_dir(path: str) -> bool:
+    return path.endswith(("/", os.sep)) or Path(path).is_dir()
+
+
+def _realize_many(args) -> int:
+    """Several scores (or directories of them) to ``-o DIR/``, one process per core."""
+    from azee_mj.batch import plan, realize_many, score_files
+
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise AzeeError(f"-o: {out} is a file; several scores need an output directory")
+    report = Path(args.report) if args.report else None
+    if report is not None and report.exists() and not report.is_dir():
+        raise AzeeError(f"--report: {report} is a file; several scores need a directory")
+    jobs = plan(score_files(args.score), out, report)
+    bar = _Progress(f"realize {len(jobs)} scores")
+
+    def done(o, n):
+        if o.ok:
+            print("\n".join(o.lines), flush=True)
+        else:
+            print(f"azee-mj: error: {o.error}", file=sys.stderr, flush=True)
+        bar(n / len(jobs))
+
+    outcomes = realize_many(jobs, fps=args.fps, mode=args.mode, workers=args.jobs,
+                            on_done=done)  # fmt: skip
+    return 0 if all(o.ok for o in outcomes) else 2
 
 
 def load_clip(
@@ -189,13 +217,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=_cmd_sites)
 
-    r = sub.add_parser("realize", help="realize a score to a rollout .npz")
-    r.add_argument("score", help="SCORE.json (azee-score version 1)")
-    r.add_argument("-o", "--output", required=True, help="OUT.npz")
+    r = sub.add_parser("realize", help="realize a score to a rollout .npz (or many to DIR/)")
+    r.add_argument("score", nargs="+", metavar="SCORE",
+                   help="SCORE.json (azee-score version 1); several, or a directory of them, "
+                   "are realized in parallel to -o DIR/")
+    r.add_argument("-o", "--output", required=True, help="OUT.npz, or DIR/ for several scores")
     r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
     r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
                    help="blocks per articulator track (default) or the 2018 flattened method")
-    r.add_argument("--report", help="also write residuals and timings to REPORT.json")
+    r.add_argument("--report", help="also write residuals and timings to REPORT.json "
+                   "(DIR/ for several scores)")
+    r.add_argument("--jobs", type=int, help="processes for several scores (default: one per "
+                   "usable core)")
     r.set_defaults(func=_cmd_realize)
 
     c = sub.add_parser("check", help="check a rollout for penetrations and range violations")

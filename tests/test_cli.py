@@ -110,3 +110,79 @@ def test_check_exit_codes(tmp_path, capsys):
 def test_realize_rejects_a_bad_fps(tmp_path, capsys):
     assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"), "--fps", "0"]) == 2
     assert capsys.readouterr().err == "azee-mj: error: --fps must be positive, got 0.0\n"
+
+
+def _arrays(path):
+    """The rollout's arrays without the wall-clock timings (the last two stats)."""
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["stats"] = arrays["stats"][:-2]  # problems, key problems, iterations, not converged
+    return arrays
+
+
+def _same_rollout(a, b):
+    x, y = _arrays(a), _arrays(b)
+    assert x.keys() == y.keys()
+    for k in x:
+        np.testing.assert_array_equal(x[k], y[k], err_msg=k)
+
+
+def test_realize_many_scores_in_parallel_matches_each_alone(tmp_path, capsys):
+    scores = [DATA / "good.json", DATA / "kinds.json"]
+    alone = tmp_path / "alone"
+    for s in scores:
+        assert main(["realize", str(s), "-o", str(alone / f"{s.stem}.npz"), "--fps", "25"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "many"
+    assert main(["realize", *map(str, scores), "-o", f"{out}/", "--fps", "25",
+                 "--jobs", "2", "--report", str(tmp_path / "reports")]) == 0
+    text = capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
+    for s in scores:
+        _same_rollout(alone / f"{s.stem}.npz", out / f"{s.stem}.npz")
+        assert f"{out / s.stem}.npz: " in text
+    assert "3/3 constraints within tolerance" in text
+    report = json.loads((tmp_path / "reports" / "good.json").read_text())
+    assert report["all_within_tolerance"] is True
+
+
+def test_realize_many_reports_each_bad_score_and_finishes_the_others(tmp_path, capsys):
+    bad = _bad_score(tmp_path)
+    out = tmp_path / "out"
+    assert main(["realize", str(DATA / "good.json"), str(bad), str(DATA / "kinds.json"),
+                 "-o", str(out), "--fps", "25", "--jobs", "2"]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == (f"azee-mj: error: {bad}: GOOD.K1: constraint 1 (place): unknown "
+                            "site 'T_TPI_R'; did you mean 'T_TIP_R'? (azee-mj sites lists all)\n")
+    assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
+    assert captured.out.count("constraints within tolerance") == 2
+
+
+def test_realize_a_directory_of_scores(tmp_path, capsys):
+    src = tmp_path / "scores"
+    src.mkdir()
+    for name in ("good.json", "kinds.json"):
+        (src / name).write_text((DATA / name).read_text())
+    (src / "notes.txt").write_text("not a score")
+    out = tmp_path / "out"
+    assert main(["realize", str(src), "-o", str(out), "--fps", "25", "--jobs", "1"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
+    single = tmp_path / "good.npz"
+    assert main(["realize", str(DATA / "good.json"), "-o", str(single), "--fps", "25"]) == 0
+    _same_rollout(single, out / "good.npz")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["realize", str(empty), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == f"azee-mj: error: {empty}: no *.json scores in this directory\n"
+
+
+def test_realize_many_rejects_clashing_names_and_bad_jobs(tmp_path, capsys):
+    other = tmp_path / "good.json"
+    other.write_text((DATA / "good.json").read_text())
+    assert main(["realize", str(DATA / "good.json"), str(other), "-o", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {DATA / 'good.json'} and {other} would "
+                                       f"both write {tmp_path / 'o' / 'good.npz'}; rename one\n")
+    assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"),
+                 "--jobs", "0"]) == 2
+    assert capsys.readouterr().err == "azee-mj: error: --jobs must be at least 1, got 0\n"
+    assert not (tmp_path / "o").exists()

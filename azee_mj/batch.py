@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
@@ -34,11 +35,14 @@ class Job:
 
 @dataclass(frozen=True)
 class Outcome:
-    """What became of a :class:`Job`: ``lines`` to print on success, else ``error``."""
+    """What became of a :class:`Job`: ``lines`` to print on success, else ``error``;
+    ``wall`` and ``cpu`` are the seconds it took in its worker (elapsed, and CPU time)."""
 
     job: Job
     lines: tuple[str, ...] = ()
     error: str = ""
+    wall: float = 0.0
+    cpu: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -112,6 +116,8 @@ def realize_file(
 
 
 _SOLVER: Solver | None = None
+_PRELOAD = ("azee_mj.batch", "azee_mj.files", "azee_mj.rollout_io", "azee_mj.schedule",
+            "azee_mj.score", "azee_mj.timeline")  # fmt: skip
 
 
 def _init_worker() -> None:
@@ -122,11 +128,20 @@ def _init_worker() -> None:
 
 
 def _run(job: Job, fps: float, mode: str) -> Outcome:
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
-        return Outcome(job, realize_file(job, fps=fps, mode=mode, solver=_SOLVER))
+        lines, error = realize_file(job, fps=fps, mode=mode, solver=_SOLVER), ""
     except AzeeError as e:
-        msg = str(e)
-        return Outcome(job, error=msg if msg.startswith(str(job.score)) else f"{job.score}: {msg}")
+        msg, lines = str(e), ()
+        error = msg if msg.startswith(str(job.score)) else f"{job.score}: {msg}"
+    return Outcome(job, lines, error, time.perf_counter() - t0, time.process_time() - c0)
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
 
 
 def realize_many(
@@ -157,10 +172,16 @@ def realize_many(
         for i, job in enumerate(jobs):
             finish(i, _run(job, fps, mode))
         return [done[i] for i in range(len(jobs))]
-    methods = multiprocessing.get_all_start_methods()
-    ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        # Import once in the server (if not started yet), not in every worker.
+        ctx.set_forkserver_preload(list(_PRELOAD))
+    else:
+        ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as pool:
-        pending = {pool.submit(_run, job, fps, mode): i for i, job in enumerate(jobs)}
+        # Largest scores first, so that no long one starts last while the other workers idle.
+        order = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i].score))
+        pending = {pool.submit(_run, jobs[i], fps, mode): i for i in order}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for f in finished:

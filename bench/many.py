@@ -41,8 +41,9 @@ def scores(copies: int, tmp: Path) -> list[Path]:
     return out
 
 
-def one_run(paths: list[Path], workers: int, tmp: Path) -> float:
-    """Scores per second of realizing ``paths`` with ``workers`` processes."""
+def one_run(paths: list[Path], workers: int, tmp: Path) -> tuple[float, float, float]:
+    """Scores per second of realizing ``paths`` with ``workers`` processes, and the seconds
+    of CPU and elapsed time the scores took inside the workers, summed."""
     out = tmp / f"out-{workers}"
     t0 = time.perf_counter()
     outcomes = realize_many(plan(paths, out), workers=workers)
@@ -50,7 +51,7 @@ def one_run(paths: list[Path], workers: int, tmp: Path) -> float:
     if not all(o.ok for o in outcomes):
         raise SystemExit("; ".join(o.error for o in outcomes if not o.ok))
     shutil.rmtree(out)
-    return len(paths) / dt
+    return len(paths) / dt, sum(o.cpu for o in outcomes), sum(o.wall for o in outcomes)
 
 
 def main() -> None:
@@ -65,19 +66,28 @@ def main() -> None:
     info = {"cpu": cpu, "cores": usable_cores(), "load_average_before": os.getloadavg(),
             "python": platform.python_version(), "mujoco": mujoco.__version__}  # fmt: skip
     rates: dict[int, list[float]] = {1: [], 2: []}
+    cpu: dict[int, list[float]] = {1: [], 2: []}
+    busy: dict[int, list[float]] = {1: [], 2: []}
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         paths = scores(args.copies, tmp)
         for run in range(args.runs):
             for w in (1, 2):
-                rates[w].append(one_run(paths, w, tmp))
-                print(f"run {run + 1}: {w} process(es): {rates[w][-1]:.2f} scores/s", flush=True)
+                rate, c, b = one_run(paths, w, tmp)
+                rates[w].append(rate)
+                cpu[w].append(c)
+                busy[w].append(b)
+                print(f"run {run + 1}: {w} process(es): {rate:.2f} scores/s; in the workers "
+                      f"{c:.2f} s CPU, {b:.2f} s elapsed", flush=True)
     info["load_average_after"] = os.getloadavg()
     m1, m2 = statistics.median(rates[1]), statistics.median(rates[2])
     result = {"machine": info, "scores": len(paths), "fps": 50, "runs": args.runs,
               "scores_per_s": {"1": rates[1], "2": rates[2]},
               "median_1": m1, "median_2": m2, "ratio_2_over_1": m2 / m1,
-              "ratio_per_run": [b / a for a, b in zip(rates[1], rates[2], strict=True)]}  # fmt: skip
+              "ratio_per_run": [b / a for a, b in zip(rates[1], rates[2], strict=True)],
+              "worker_cpu_s": {"1": cpu[1], "2": cpu[2]},
+              "worker_elapsed_s": {"1": busy[1], "2": busy[2]},
+              "cpu_share_1": statistics.median(c / b for c, b in zip(cpu[1], busy[1], strict=True))}  # fmt: skip
     Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result, indent=1))
 

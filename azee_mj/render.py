@@ -120,8 +120,8 @@ def scene_model(width: int = 0, height: int = 0, *, antialias: bool = True) -> m
     m.vis.global_.offheight = max(m.vis.global_.offheight, height)
     q = m.vis.quality
     # Each looks the same at these sizes and costs less in software GL: a 1024 shadow map
-    # (not 4096), and 16 x 10 facets per round geom (not 28 x 16; every geom is drawn three
-    # times a frame, for the shadow map, the unshadowed and the shadowed light).
+    # (not 4096), and 16 x 10 facets per round geom (not 28 x 16; every geom is drawn in
+    # several passes a frame, for the shadow map and the lights).
     q.shadowsize = min(q.shadowsize, SHADOW_SIZE)
     q.numslices, q.numstacks = min(q.numslices, TESSELLATION[0]), min(q.numstacks, TESSELLATION[1])
     q.offsamples = min(q.offsamples, SAMPLES[antialias])

@@ -186,3 +186,10 @@ def test_realize_many_rejects_clashing_names_and_bad_jobs(tmp_path, capsys):
                  "--jobs", "0"]) == 2
     assert capsys.readouterr().err == "azee-mj: error: --jobs must be at least 1, got 0\n"
     assert not (tmp_path / "o").exists()
+
+
+def test_realize_one_score_to_a_directory(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["realize", str(DATA / "good.json"), "-o", f"{out}/", "--fps", "25"]) == 0
+    assert capsys.readouterr().out.startswith(f"{out / 'good.npz'}: 31 frames at 25 fps, ")
+    assert [p.name for p in out.iterdir()] == ["good.npz"]

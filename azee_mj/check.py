@@ -47,10 +47,12 @@ class PoseReport:
     penetrations: tuple[Penetration, ...]
     range_violations: tuple[RangeViolation, ...]
     max_depth: np.ndarray
+    #: frames whose posture holds NaN or infinity (not checked further)
+    nonfinite: tuple[int, ...] = ()
 
     @property
     def clean(self) -> bool:
-        return not self.penetrations and not self.range_violations
+        return not self.penetrations and not self.range_violations and not self.nonfinite
 
 
 def _name(m: mujoco.MjModel, gid: int) -> str:
@@ -86,7 +88,10 @@ def check_poses(
     pens: list[Penetration] = []
     viol: list[RangeViolation] = []
     max_depth = np.zeros(len(q))
+    finite = np.isfinite(q).all(axis=1)
     for f, qf in enumerate(q):
+        if not finite[f]:
+            continue
         vals = qf[adr]
         excess = np.maximum(lo - vals, vals - hi)
         for j in np.flatnonzero(excess > range_tol):
@@ -105,7 +110,8 @@ def check_poses(
             b1, b2 = body[model.geom_bodyid[c.geom1]], body[model.geom_bodyid[c.geom2]]
             if depth > penetration_limit and (b1, b2) not in ok and (b2, b1) not in ok:
                 pens.append(Penetration(f, _name(model, c.geom1), _name(model, c.geom2), depth))
-    return PoseReport(len(q), tuple(pens), tuple(viol), max_depth)
+    return PoseReport(len(q), tuple(pens), tuple(viol), max_depth,
+                      tuple(int(f) for f in np.flatnonzero(~finite)))  # fmt: skip
 
 
 def summary(report: PoseReport, fps: float | None = None) -> str:
@@ -114,6 +120,9 @@ def summary(report: PoseReport, fps: float | None = None) -> str:
     when = (lambda f: f"t={f / fps:.3f}s") if fps else (lambda f: f"frame {f}")
     worst = float(report.max_depth.max(initial=0.0))
     lines.append(f"deepest contact: {worst * 1000:.2f} mm")
+    if report.nonfinite:
+        lines.append(f"{len(report.nonfinite)} frame(s) with a non-finite posture (NaN or "
+                     f"infinity), first at {when(report.nonfinite[0])}")  # fmt: skip
     if report.penetrations:
         lines.append(f"{len(report.penetrations)} penetration(s) over the limit, e.g.:")
         for p in sorted(report.penetrations, key=lambda p: -p.depth)[:5]:

@@ -1,22 +1,58 @@
-"""The ``azee-mj`` command line: catalogue, realize, check, preview, render, report.
+"""The ``azee-mj`` command line: catalogue, compile and rules (the ``.azee`` front end),
+realize, check, preview, render, export, report.
 
-Bad input prints one message and exits with status 2; a failed check exits with 1.
+Exit status: 0 done; 1 a check found problems (``check``, or ``realize --strict`` with a
+constraint out of tolerance); 2 bad input (a score, rollout, option or output path; one
+message, no output file; when realizing several scores, any bad one, the others written);
+3 an internal error (a bug: one line asking for a report; ``--debug`` shows the
+traceback); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
+any work starts (:func:`_outputs`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from azee_mj.errors import AzeeError
+from azee_mj.errors import AzeeError, printable, shorten
 
 if TYPE_CHECKING:
     from azee_mj.markers import Clip
+
+
+#: Exit statuses (see the module docstring).
+EXIT_OK, EXIT_FINDINGS, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+def _outputs(args, outputs: tuple[str, ...], inputs: tuple[str, ...],
+             directory: bool = False) -> None:  # fmt: skip
+    """The one output check of every writing command, before any work: each option named in
+    ``outputs`` (e.g. ``output``, ``report``) that is set must be writable and differ from
+    every input option named in ``inputs`` and from every sign file of the ``--lexicon``
+    directories (see :func:`azee_mj.files.check_output`)."""
+    from azee_mj.files import check_output
+
+    given = [getattr(args, k) for k in inputs if getattr(args, k, None)] + _lexicon_files(args)
+    paths = [getattr(args, k) for k in outputs if getattr(args, k, None)]
+    for p in paths:
+        check_output(p, given, directory=directory)
+    real = [os.path.realpath(p) for p in paths]
+    if len(set(real)) < len(real):
+        raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
+
+
+def _lexicon_files(args) -> list[Path]:
+    """The sign files of the ``--lexicon`` directories (inputs no output may replace)."""
+    return [p for d in getattr(args, "lexicon", None) or () if os.path.isdir(d)
+            for p in Path(d).iterdir() if p.suffix in (".json", ".azee")]  # fmt: skip
 
 
 def _cmd_sites(args) -> int:
@@ -38,6 +74,73 @@ def _cmd_sites(args) -> int:
     return 0
 
 
+def _score_arg(path: str | None, args) -> str | None:
+    """A score argument as a JSON path: a ``.azee`` expression is compiled (with the
+    command's ``--lexicon`` directories) to ``STEM.json`` in a temporary directory that lives
+    until the command ends; any other path is returned as it is."""
+    if path is None or Path(path).suffix.lower() != ".azee":
+        return path
+    from azee_mj.azee import compile_file, dump_score
+
+    score = compile_file(path, lexicon=getattr(args, "lexicon", None) or ())
+    tmp = Path(args.cleanup.enter_context(tempfile.TemporaryDirectory(prefix="azee-mj-")))
+    out = tmp / f"{Path(path).stem}.json"
+    out.write_text(dump_score(score), encoding="utf-8")
+    return str(out)
+
+
+def _add_lexicon(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--lexicon", action="append", metavar="DIR",
+                   help="a directory of signs (NAME.json, NAME.azee) for .azee input, searched "
+                   "before the bundled lexicon; repeatable")  # fmt: skip
+
+
+def _cmd_compile(args) -> int:
+    from azee_mj.azee import compile_file, compile_text, dump_score
+    from azee_mj.files import atomic_path
+
+    if (args.input is None) == (args.e is None):
+        raise AzeeError("compile: give one EXPR.azee file or -e TEXT")
+    _outputs(args, ("output",), ("input",))
+    lex = args.lexicon or ()
+    if args.e is not None:
+        score = compile_text(args.e, args.strong_side, lex, file="<-e>")
+    else:
+        score = compile_file(args.input, args.strong_side, lex)
+    text = dump_score(score)
+    if args.output is None:
+        sys.stdout.write(text)
+        return 0
+    out = Path(args.output)
+    with atomic_path(out, inputs=(args.input,) if args.input else ()) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    print(f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
+          file=sys.stderr)  # fmt: skip
+    return 0
+
+
+def _cmd_rules(args) -> int:
+    from azee_mj.azee import RULES, Lexicon, rules_catalogue
+
+    lex = Lexicon(args.lexicon or ())
+    if args.json:
+        print(json.dumps(rules_catalogue(lex)))
+        return 0
+    print(f"{len(RULES)} rules:")
+    for r in RULES:
+        alias = f" (alias {', '.join(':' + a for a in r.aliases)})" if r.aliases else ""
+        print(f"  :{r.name}({r.signature()}){alias}")
+        print(f"      {r.summary}")
+        print(f"      source: {r.source}; approximated: {r.approximated}")
+    names = lex.names()
+    print(f"{len(names)} signs:")
+    for n in names:
+        s = lex.get(n)
+        dur = f"{s.duration:g} s" if s.duration is not None else "expression"
+        print(f"  :{n}({s.signature()}) {dur}" if s.params else f"  :{n} {dur}")
+    return 0
+
+
 def _v(v) -> str:
     return "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"
 
@@ -48,13 +151,13 @@ def _cmd_check(args) -> int:
     from azee_mj.rollout_io import load_rollout
 
     model = load_model()
-    rollout = load_rollout(args.rollout, model.nq)
+    rollout = load_rollout(args.rollout, model.nq, allow_nonfinite=True)  # NaN: a finding
     allowed, score, solver = frozenset(), None, None
     if args.score:
         from azee_mj.schedule import contact_pairs, make_solver
         from azee_mj.score import load_score
 
-        score, solver = load_score(args.score), make_solver()
+        score, solver = load_score(_score_arg(args.score, args)), make_solver()
         allowed = contact_pairs(score, rollout.time, solver)
     report = check_poses(model, rollout.qpos, allowed=allowed)
     print(summary(report, rollout.fps))
@@ -88,49 +191,68 @@ def _cmd_realize(args) -> int:
     from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
+    from azee_mj.timing import check_fps
 
-    if args.fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    check_fps(args.fps)
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
-    if len(args.score) > 1 or Path(args.score[0]).is_dir() or _is_dir(args.output):
+    if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
         return _realize_many(args)
-    score = load_score(args.score[0])
+    args.score = args.score[0]
+    _outputs(args, ("output", "report"), ("score",))
+    score = load_score(_score_arg(args.score, args))
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_rollout(args.output, rollout)
+    save_rollout(args.output, rollout, inputs=(args.score,))
     if args.report:
-        save_json(args.report, rollout.report())
+        save_json(args.report, rollout.report(), inputs=(args.score, args.output))
     print("\n".join(summary_lines(args.output, rollout, args.fps)))
-    return 0
+    return 1 if args.strict and any(not t.ok for t in rollout.traces) else 0
 
 
-def _is_dir(path: str) -> bool:
-    return path.endswith(("/", os.sep)) or Path(path).is_dir()
+def _dir_like(path: str) -> bool:
+    """A path written as a directory (``DIR/``)."""
+    return path.endswith(("/", os.sep))
 
 
 def _realize_many(args) -> int:
-    """Several scores (or directories of them) to ``-o DIR/``, one process per core."""
-    from azee_mj.batch import plan, realize_many, score_files
+    """Several scores (or directories of them) to ``-o DIR/``, one process per core.
 
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise AzeeError(f"-o: {out} is a file; several scores need an output directory")
-    report = Path(args.report) if args.report else None
-    if report is not None and report.exists() and not report.is_dir():
-        raise AzeeError(f"--report: {report} is a file; several scores need a directory")
-    jobs = plan(score_files(args.score), out, report)
+    Everything is checked before any score is realized: the output (and ``--report``)
+    directories exist and are writable, no two scores write the same file, and no output is
+    an input. Exit 2 if any score was bad (it outranks ``--strict``), else 1 with
+    ``--strict`` if any score missed a constraint, else 0."""
+    from azee_mj.batch import plan, realize_many, score_files
+    from azee_mj.files import check_output, check_output_dir
+
+    scores = score_files(args.score)
+    lexicon = args.lexicon or ()
+    if any(s.suffix.lower() == ".azee" for s in scores):
+        from azee_mj.azee import Lexicon
+
+        Lexicon(lexicon)  # a bad --lexicon once, not once per expression
+    check_output_dir(args.output)
+    if args.report:
+        check_output_dir(args.report)
+    jobs = plan(scores, Path(args.output), Path(args.report) if args.report else None)
+    inputs = [*scores, *_lexicon_files(args)]
+    for j in jobs:
+        for out in (j.output, j.report):
+            if out is not None:
+                check_output(out, inputs)
     bar = _Progress(f"realize {len(jobs)} scores")
 
     def done(o, n):
         if o.ok:
             print("\n".join(o.lines), flush=True)
         else:
-            print(f"azee-mj: error: {o.error}", file=sys.stderr, flush=True)
+            print(f"azee-mj: error: {printable(o.error)}", file=sys.stderr, flush=True)
         bar(n / len(jobs))
 
     outcomes = realize_many(jobs, fps=args.fps, mode=args.mode, workers=args.jobs,
-                            on_done=done)  # fmt: skip
-    return 0 if all(o.ok for o in outcomes) else 2
+                            lexicon=lexicon, on_done=done)  # fmt: skip
+    if not all(o.ok for o in outcomes):
+        return EXIT_BAD_INPUT
+    return EXIT_FINDINGS if args.strict and any(o.missed for o in outcomes) else EXIT_OK
 
 
 def load_clip(
@@ -163,11 +285,13 @@ def load_clip(
 
 
 def _clip(args, progress: bool = True):
+    from azee_mj.timing import check_fps
 
-    if args.fps is not None and args.fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {args.fps}")
+    if args.fps is not None:
+        check_fps(args.fps)
     realize_fps = args.fps or 50.0
-    return load_clip(args.input, score=getattr(args, "score", None), fps=realize_fps,
+    score = _score_arg(getattr(args, "score", None), args)
+    return load_clip(_score_arg(args.input, args), score=score, fps=realize_fps,
                      progress=_Progress("realize") if progress else None)  # fmt: skip
 
 
@@ -187,6 +311,7 @@ def _cmd_render(args) -> int:
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time)  # before realizing
+    _outputs(args, ("output",), ("input", "score"))
     clip = _clip(args)
     out = render(clip, args.output, camera=args.camera, size=size, fps=args.fps,
                  time=args.time, targets=args.targets, antialias=not args.no_antialias,
@@ -197,11 +322,27 @@ def _cmd_render(args) -> int:
 
 def _cmd_report(args) -> int:
     from azee_mj.report import write_report
+    from azee_mj.timing import check_fps
 
-    paths = write_report(args.score, args.output, fps=args.fps or 50.0,
+    fps = 50.0 if args.fps is None else check_fps(args.fps)
+    as_dir = args.output.endswith(("/", os.sep)) or Path(args.output).is_dir()
+    _outputs(args, ("output",), ("score",), directory=as_dir)
+    paths = write_report(_score_arg(args.score, args), args.output, fps=fps,
                          progress=_Progress("report"))  # fmt: skip
     for p in paths:
         print(f"{p}: written")
+    return 0
+
+
+def _cmd_export(args) -> int:
+    from azee_mj.export import export
+    from azee_mj.timing import check_fps
+
+    check_fps(args.fps)
+    _outputs(args, ("output",), ("input", "score"))
+    out = export(_score_arg(args.input, args), args.output,
+                 score=_score_arg(args.score, args), fps=args.fps)
+    print(f"{out}: written")
     return 0
 
 
@@ -218,31 +359,52 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=_cmd_sites)
 
+    a = sub.add_parser("compile", help="compile an AZee expression (.azee) to a score")
+    a.add_argument("input", nargs="?", metavar="EXPR.azee", help="the expression file")
+    a.add_argument("-e", metavar="TEXT", help="the expression as text instead of a file")
+    a.add_argument("-o", "--output", help="SCORE.json (default: standard output)")
+    a.add_argument("--strong-side", choices=["R", "L"], default="R",
+                   help="the score's strong side (default R)")
+    _add_lexicon(a)
+    a.set_defaults(func=_cmd_compile)
+
+    u = sub.add_parser("rules", help="list the rules and signs of the .azee front end")
+    u.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_lexicon(u)
+    u.set_defaults(func=_cmd_rules)
+
     r = sub.add_parser("realize", help="realize a score to a rollout .npz (or many to DIR/)")
     r.add_argument("score", nargs="+", metavar="SCORE",
-                   help="SCORE.json (azee-score version 1); several, or a directory of them, "
-                   "are realized in parallel to -o DIR/")
-    r.add_argument("-o", "--output", required=True, help="OUT.npz, or DIR/ for several scores")
+                   help="SCORE.json (azee-score version 1) or EXPR.azee; several, or a "
+                   "directory of them (*.json, *.azee), are realized in parallel to -o DIR/")
+    r.add_argument("-o", "--output", required=True,
+                   help="OUT.npz, or an existing DIR/ for NAME.npz of each score")
     r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
     r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
                    help="blocks per articulator track (default) or the 2018 flattened method")
     r.add_argument("--report", help="also write residuals and timings to REPORT.json "
-                   "(DIR/ for several scores)")
+                   "(an existing DIR/ for several scores)")
+    r.add_argument("--strict", action="store_true",
+                   help="exit 1 if any constraint is not met (default: 0, and say why)")
     r.add_argument("--jobs", type=int, help="processes for several scores (default: one per "
                    "usable core)")
+    _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)
 
     c = sub.add_parser("check", help="check a rollout for penetrations and range violations")
     c.add_argument("rollout", help="ROLLOUT.npz written by 'azee-mj realize'")
-    c.add_argument("--score", help="the score it realizes: also report constraint residuals")
+    c.add_argument("--score", help="the score it realizes (.json or .azee): also report "
+                   "constraint residuals")
+    _add_lexicon(c)
     c.set_defaults(func=_cmd_check)
 
     from azee_mj.render import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
     v.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json (realized first) or ROLLOUT.npz")
+                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
     v.add_argument("--score", help="the score of a ROLLOUT.npz, to draw its targets")
+    _add_lexicon(v)
     v.add_argument("--fps", type=float, help="frames per second when realizing (default 50)")
     v.add_argument("--camera", choices=CAMERAS, help="start from a fixed camera (default: free)")
     v.add_argument("--no-targets", action="store_true", help="do not draw constraint targets")
@@ -251,8 +413,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
     w.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json (realized first) or ROLLOUT.npz")
+                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
     w.add_argument("-o", "--output", required=True, help="OUT.mp4, OUT.gif or OUT.png")
+    _add_lexicon(w)
     w.add_argument("--score", help="the score of a ROLLOUT.npz (targets, contact sheet labels)")
     w.add_argument("--camera", choices=CAMERAS, default="front", help="camera (default front)")
     w.add_argument("--size", default="640x480", help="WxH in pixels (default 640x480)")
@@ -264,8 +427,21 @@ def build_parser() -> argparse.ArgumentParser:
                    "as fast in software GL, with jagged edges")
     w.set_defaults(func=_cmd_render)
 
+    e = sub.add_parser("export", help="export a score or rollout to .glb, .gltf, .bvh, .pose, "
+                       ".csv or a web player .html")
+    e.add_argument("input", metavar="SCORE|ROLLOUT",
+                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
+    e.add_argument("-o", "--output", required=True,
+                   help="OUT.glb, OUT.gltf, OUT.bvh, OUT.pose, OUT.csv or OUT.html")
+    e.add_argument("--score", help="the score of a ROLLOUT.npz (the player shows its blocks)")
+    _add_lexicon(e)
+    e.add_argument("--fps", type=float, default=50.0,
+                   help="frames per second when realizing a score (default 50)")
+    e.set_defaults(func=_cmd_export)
+
     h = sub.add_parser("report", help="HTML report (or PNG set) of a score's realization")
-    h.add_argument("score", help="SCORE.json")
+    h.add_argument("score", help="SCORE.json or EXPR.azee")
+    _add_lexicon(h)
     h.add_argument("-o", "--output", required=True, help="REPORT.html, or DIR/ for PNG files")
     h.add_argument("--fps", type=float, help="frames per second (default 50)")
     h.set_defaults(func=_cmd_report)
@@ -273,16 +449,48 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``azee-mj``; returns the exit status."""
+    """Entry point of ``azee-mj``; returns the exit status (see the module docstring).
+
+    ``--debug`` anywhere on the command line shows the traceback of an internal error."""
+    from azee_mj.files import Terminated, install_signal_handlers, remove_temporaries
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        install_signal_handlers()
+    except ValueError:  # not the main thread: signals stay as they are
+        pass
+    try:
+        with contextlib.ExitStack() as args.cleanup:
+            return args.func(args)
     except AzeeError as e:
-        print(f"azee-mj: error: {e}", file=sys.stderr)
-        return 2
+        print(f"azee-mj: error: {printable(str(e))}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        return 130
+        remove_temporaries()
+        print("azee-mj: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print("azee-mj: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    except MemoryError:
+        remove_temporaries()
+        print("azee-mj: error: out of memory; try a shorter score or a lower --fps",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_BAD_INPUT
+    except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback only when asked
+        remove_temporaries()
+        if debug:
+            import traceback
+
+            traceback.print_exc()
+        what = shorten(printable(f"{type(e).__name__}: {e}"), 200)
+        print(f"azee-mj: internal error ({what}); please report it with the command and its "
+              "input files (add --debug for the traceback)", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

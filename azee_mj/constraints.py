@@ -152,7 +152,7 @@ class JointTarget:
 @dataclasses.dataclass(frozen=True)
 class CollisionRows:
     """Rows of the contacts deeper than allowed: residual (c,), Jacobian (c, free), and the
-    deepest penetration [m] between bodies not allowed to touch."""
+    deepest penetration [m] beyond what its body pair is allowed."""
 
     r: np.ndarray
     J: np.ndarray
@@ -163,8 +163,8 @@ class Collisions:
     """Self-collision as rows: a one-sided penalty per contact reported by ``mj_collision``,
     zero while the geoms are apart and ``depth / COLLISION_TOL`` when they penetrate.
 
-    ``floor`` (nbody, nbody) is the distance allowed per body pair (``-CONTACT_ALLOWANCE``
-    for pairs a contact brings together, else 0); rows are over the dofs ``free``.
+    ``floor`` (nbody, nbody) is the distance allowed per body pair (negative for pairs a
+    contact brings together, else 0); rows are over the dofs ``free``.
     """
 
     tol = COLLISION_TOL
@@ -190,8 +190,9 @@ class Collisions:
         hit = np.flatnonzero(dist < floor)
         if not hit.size:
             return None
-        own = dist[hit][floor[hit] == 0.0]
-        depth = float(-own.min()) if own.size else 0.0
+        # How far the worst contact goes past what its pair may (nothing for strangers,
+        # the contact allowance for parts a contact brings together).
+        depth = float((floor[hit] - dist[hit]).max())
         normal = d.contact.frame[hit, :3]
         pos = d.contact.pos[hit]
         j1, j2 = self.j1, self.j2

@@ -1,46 +1,166 @@
-"""Output files written atomically (temp file in the same directory + rename), so a failure
-never leaves a partial output file: ``.npz`` arrays and JSON."""
+"""Output files, one rule for every command that writes: :func:`check_output` before any
+work, then :func:`atomic_path` (temp file in the same directory + rename).
+
+The rule:
+
+* an output that exists must be a regular file (never a directory, device, fifo or socket),
+  and must not be one of the command's inputs;
+* a symbolic link is written *through*: the file it points to is replaced, the link stays;
+* the output's directory must exist and be writable (checked before any work starts, so a
+  long run never ends on an unwritable ``--report``);
+* the data goes to a hidden temporary file beside the output, renamed onto it only when
+  complete; the temporary file is removed on any failure, on Ctrl-C (SIGINT) and, once
+  :func:`install_signal_handlers` ran, on SIGTERM. (SIGKILL cannot be caught: a
+  ``.NAME.*`` file may then remain.)
+"""
 
 from __future__ import annotations
 
 import contextlib
 import json
 import os
+import signal
+import stat
 import tempfile
+import zipfile
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 
+from azee_mj.errors import OutputError, shorten
+
+#: Temporary files being written now (removed by :func:`remove_temporaries`).
+_PENDING: set[str] = set()
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived (raised by the handler :func:`install_signal_handlers` installs)."""
+
+
+def _shown(path) -> str:
+    return shorten(str(path), 200)
+
+
+def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = (),
+                 directory: bool = False) -> Path:  # fmt: skip
+    """The file ``path`` will replace (symlinks resolved), after checking it may be written;
+    raise :class:`~azee_mj.errors.OutputError` (one line) otherwise.
+
+    ``inputs`` are the command's input files (an output may not be one of them);
+    ``directory`` is for an output directory (it may exist as a directory, or be created in
+    a writable parent)."""
+    target = Path(os.path.realpath(path))
+    shown = _shown(path)
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as e:  # e.g. a file used as a parent directory (ENOTDIR), a loop
+        raise OutputError(f"{shown}: cannot be written: {e.strerror}") from None
+    if st is not None:
+        if directory:
+            if not stat.S_ISDIR(st.st_mode):
+                raise OutputError(f"{shown}: exists and is not a directory")
+            if not os.access(target, os.W_OK | os.X_OK):
+                raise OutputError(f"{shown}: the directory is not writable")
+            return target
+        if stat.S_ISDIR(st.st_mode):
+            raise OutputError(f"{shown}: is a directory; give a file name")
+        if not stat.S_ISREG(st.st_mode):
+            raise OutputError(f"{shown}: exists and is not a regular file (a device, fifo or "
+                              "socket); refusing to replace it")  # fmt: skip
+        for i in inputs:
+            with contextlib.suppress(OSError):
+                if os.path.samefile(i, target):
+                    raise OutputError(f"{shown}: is also an input ({_shown(i)}); "
+                                      "write to another file")  # fmt: skip
+    parent = target.parent
+    if not parent.exists():
+        raise OutputError(f"{shown}: the directory {_shown(parent)} does not exist")
+    if not parent.is_dir():
+        raise OutputError(f"{shown}: {_shown(parent)} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{shown}: the directory {_shown(parent)} is not writable")
+    return target
+
+
+def check_output_dir(path: str | os.PathLike) -> Path:
+    """The existing directory ``path`` (symlinks resolved) that outputs will be written into,
+    after checking it is a writable directory; raise :class:`~azee_mj.errors.OutputError`
+    otherwise. Unlike ``check_output(..., directory=True)``, which accepts a directory yet
+    to be made in a writable parent, it must exist, as a single output's directory must."""
+    if not os.path.exists(os.path.realpath(path)):  # 'FILE/' is a file, not missing
+        raise OutputError(f"{_shown(path)}: the directory does not exist")
+    return check_output(path, directory=True)
+
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str = ""):
-    """Yield a temporary path beside ``path``; move it onto ``path`` only on success."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix,
-                               dir=path.parent)  # fmt: skip
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it owner-only; outputs are ordinary files
+def atomic_path(path: str | os.PathLike, suffix: str = "",
+                inputs: Iterable[str | os.PathLike] = ()):  # fmt: skip
+    """Yield a temporary path beside ``path`` (checked with :func:`check_output`); move it
+    onto ``path`` (through a symlink) only on success, remove it otherwise."""
+    target = check_output(path, inputs)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix or target.suffix,
+                               dir=target.parent)  # fmt: skip
+    _PENDING.add(tmp)
     try:
+        os.close(fd)
+        if target.exists():  # keep the replaced file's permissions
+            mode = stat.S_IMODE(os.stat(target).st_mode)
+        else:  # mkstemp makes it owner-only; outputs are ordinary files
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask
+        os.chmod(tmp, mode)
         yield Path(tmp)
-        os.replace(tmp, path)
+        os.replace(tmp, target)
+    except OSError as e:
+        raise OutputError(f"{_shown(path)}: cannot be written: {e.strerror or e}") from None
     finally:
-        if os.path.exists(tmp):
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
+        _PENDING.discard(tmp)
 
 
-def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
-    """Write numeric / fixed-width text arrays to ``path`` (loads with allow_pickle=False)."""
+def remove_temporaries() -> None:
+    """Remove every temporary file being written now."""
+    for tmp in list(_PENDING):
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        _PENDING.discard(tmp)
+
+
+def install_signal_handlers() -> None:
+    """Make SIGTERM raise :class:`Terminated` (so temporary files are removed as the stack
+    unwinds) and SIGINT raise ``KeyboardInterrupt``; main thread only."""
+
+    def on_term(signum, frame):
+        remove_temporaries()
+        raise Terminated(signum)
+
+    signal.signal(signal.SIGTERM, on_term)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray],
+             inputs: Iterable[str | os.PathLike] = ()) -> None:  # fmt: skip
+    """Write numeric / fixed-width text arrays to ``path`` as a compressed ``.npz`` (loads
+    with ``np.load(..., allow_pickle=False)``); the same arrays always give the same bytes."""
     for k, v in arrays.items():
         if np.asarray(v).dtype == object:
             raise TypeError(f"array {k!r} has dtype object; it would need pickle")
-    with atomic_path(path, ".npz") as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(f, **arrays)
+    with atomic_path(path, ".npz", inputs) as tmp, zipfile.ZipFile(
+            tmp, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf:  # fmt: skip
+        for k, v in arrays.items():
+            # A fixed timestamp: the same arrays give the same bytes (np.savez stamps now).
+            info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            with zf.open(info, "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(v), allow_pickle=False)
 
 
-def save_json(path: str | os.PathLike, obj) -> None:
+def save_json(path: str | os.PathLike, obj, inputs: Iterable[str | os.PathLike] = ()) -> None:
     """Write ``obj`` as indented JSON, atomically."""
-    with atomic_path(path) as tmp:
+    with atomic_path(path, inputs=inputs) as tmp:
         tmp.write_text(json.dumps(obj, indent=1) + "\n")

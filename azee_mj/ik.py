@@ -55,6 +55,8 @@ from azee_mj.kinematics import (
     Unit,
     skew,
 )
+from azee_mj.natural import Effort, Naturalness
+from azee_mj.natural import rows as natural_rows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,8 +69,18 @@ class IKProblem:
         constrained body (its ancestors). Other joints keep their warm-start value.
       touching: body pairs that may touch (up to ``CONTACT_ALLOWANCE`` deep) besides those
         that a site-to-site placement of this problem brings together.
-      prefer: the posture the mild preference pulls toward (the realizer passes the current
-        one, for the least motion); None = the solver's ``natural`` posture (``home``).
+      prefer: the posture the guide pulls toward while reaching the constraints (the
+        realizer passes the current one, for the least motion); None = ``natural``.
+      seeds: postures (nq,) to start from besides the warm start (e.g. analytic arm
+        postures); every start is tried and the best result by one cost kept.
+      max_change: largest change of any free joint from the warm start [rad or m]: a
+        per-frame solve stays on the branch of the frame before (restarts stay inside).
+      natural: take the most natural posture among the solutions (False: the first one
+        reached, e.g. for an intermediate solve).
+      collide: keep the body out of itself (False: a transparent body, for diagnosis).
+      preferences: constraints that join the naturalness objective (rows scaled by their
+        tolerance), e.g. where two hands meet when nothing else says where.
+      restarts: further attempts when none meets everything (None: the solver's own).
     """
 
     constraints: tuple[Constraint, ...]
@@ -77,6 +89,12 @@ class IKProblem:
     touching: tuple[tuple[str, str], ...] = ()
     #: (nq,) the posture to prefer among the solutions; None = the solver's natural one.
     prefer: np.ndarray | None = dataclasses.field(default=None, compare=False)
+    seeds: tuple[np.ndarray, ...] = dataclasses.field(default=(), compare=False)
+    max_change: float | None = None
+    natural: bool = True
+    collide: bool = True
+    preferences: tuple[Constraint, ...] = ()
+    restarts: int | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,8 +145,15 @@ class IKResult:
 MU0 = 1e-3
 #: Largest change of one joint in one iteration [rad or m] (a trust region).
 MAX_STEP = 0.4
-#: Weight of the natural-posture rows (per radian; a constraint row is 1 at its tolerance).
+#: Weight of the guide toward the preferred posture while the constraints are being
+#: reached (per radian; a constraint row is 1 at its tolerance).
 POSTURE = 0.3
+#: Singular values below this fraction of the largest span the constraints' null space.
+NULL_TOL = 1e-4
+#: Most natural-posture steps once the constraints are met.
+NATURAL_ITER = 30
+#: First trust radius of a natural-posture step [rad].
+NATURAL_STEP = 0.2
 
 class Solver:
     """Solves :class:`IKProblem` s on one model.
@@ -144,6 +169,9 @@ class Solver:
       restarts: further attempts from other starts when an attempt does not converge.
       margin: collision margin [m] for detecting near contacts.
       on_solve: called with each problem and its result, in solving order (an observer).
+      naturalness: what makes a posture natural (:mod:`azee_mj.natural`); among the
+        postures that meet the constraints without penetration the solver takes the most
+        natural one. None = the first it reaches.
     """
 
     def __init__(
@@ -157,6 +185,7 @@ class Solver:
         margin: float = 0.004,
         seed: int = 0,
         on_solve: Callable[[IKProblem, IKResult], None] | None = None,
+        naturalness: Naturalness | None = None,
     ):
         if isinstance(model, mujoco.MjSpec):
             spec = model.copy()
@@ -184,6 +213,13 @@ class Solver:
             jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             if jid >= 0:
                 self.dof_weight[m.jnt_dofadr[jid]] = w
+        self.set_naturalness(naturalness)
+
+    def set_naturalness(self, naturalness: Naturalness | None) -> None:
+        """Prefer the most natural posture by ``naturalness`` (None: the first reached)."""
+        self.naturalness = naturalness
+        self.effort_dofs = (np.flatnonzero(naturalness.strength > 0) if naturalness is not None
+                            else np.zeros(0, int))  # fmt: skip
 
     # -- names ------------------------------------------------------------------------
     def site_id(self, name: str) -> int:
@@ -287,6 +323,8 @@ class Solver:
     def solve(self, problem: IKProblem, q0: np.ndarray | None = None) -> IKResult:
         """Solve ``problem`` warm-started from ``q0`` (nq,) (default: the natural posture).
 
+        Strict priorities: the constraints, then no penetration, then (with a
+        ``naturalness``) the most natural posture among those that meet both.
         Never raises for geometry: an infeasible problem returns the best posture found
         with ``converged=False``.
         """
@@ -296,33 +334,27 @@ class Solver:
         cons = problem.constraints
         plan = self.plan(problem)
         free = plan.free
-        best = None
         history: list[float] = []
-        iters = 0
-        attempt = 0
-        start = q_start
-        while True:
-            # First with the natural-posture preference, then without it, so that it picks
-            # among the solutions but never biases the constraints.
-            if attempt == 1:
-                # Self-collision can trap the iteration in a corner: reach the constraints
-                # with the body transparent, then let the collision rows push parts apart.
-                plan.collide = False
-                run = self._lm(start, plan, history, POSTURE)
-                start = run.q
-                plan.collide = True
-                iters += run.iterations
-            run = self._lm(start, plan, history, POSTURE)
+        if problem.max_change is not None:
+            plan.lower = np.maximum(plan.lower, q_start - problem.max_change)
+            plan.upper = np.minimum(plan.upper, q_start + problem.max_change)
+        # Every seed and the warm start, then restarts (inside the max_change box) until one
+        # meets everything; the best attempt by one cost is kept.
+        best = None
+        iters = attempt = 0
+        for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
+            run = self._attempt(start, plan, history)
             iters += run.iterations
-            if not run.done:
-                run = self._lm(run.q, plan, history)
-                iters += run.iterations
-            if best is None or run.cost < best.cost:
+            if best is None or run.rank < best.rank:
                 best = run
-            if run.done or attempt >= self.restarts:
-                break
+        restarts = self.restarts if problem.restarts is None else problem.restarts
+        while best.rank[0] and attempt < restarts:
             attempt += 1
-            start = self._restart_point(attempt, q_start, free)
+            start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
+            run = self._attempt(start, plan, history, transparent_first=attempt == 1)
+            iters += run.iterations
+            if run.rank < best.rank:
+                best = run
         q = best.q
         residuals, depth = plan.report(q)
         hard = [r for r, c in zip(residuals, cons) if not c.soft]
@@ -335,6 +367,117 @@ class Solver:
         if self.on_solve is not None:
             self.on_solve(problem, result)
         return result
+
+    def _attempt(self, start, plan, history, transparent_first=False) -> Attempt:
+        """One attempt from ``start``: reach the constraints (guided toward the preferred
+        posture, then without the guide), then the most natural posture that keeps them."""
+        iters = 0
+        if transparent_first:
+            # Self-collision can trap the iteration in a corner: reach the constraints
+            # with the body transparent, then let the collision rows push parts apart.
+            plan.collide = False
+            start = self._lm(start, plan, history, POSTURE).q
+            plan.collide = plan.problem.collide
+        run = self._lm(start, plan, history, POSTURE)
+        iters += run.iterations
+        if not run.done:
+            run = self._lm(run.q, plan, history)
+            iters += run.iterations
+        if not run.met:
+            return Attempt(run.q, (1, run.cost), iters)
+        if not plan.natural:
+            return Attempt(run.q, (0, 0.0), iters)
+        q, nat, n_it = self._polish(run.q, plan, history)
+        return Attempt(q, (0, nat), iters + n_it)
+
+    def _natural(self, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
+        r, J = natural_rows(self.naturalness, plan.effort, self.data, plan.free)
+        if not plan.problem.preferences:
+            return r, J
+        k = self.kinematics()
+        rows = [c.rows(k) for c in plan.problem.preferences]
+        return (np.concatenate([r, *(x for x, _ in rows)]),
+                np.vstack([J, *(j[:, plan.free] for _, j in rows)]))
+
+    def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
+        """The most natural posture among those that meet the constraints, from ``q`` that
+        meets them: Gauss-Newton steps on the naturalness rows in the null space of the
+        constraint and collision rows (and of the joints at a limit the step would cross),
+        each followed by steps back onto the constraints. A step is kept only if every
+        constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
+        naturalness never bends a constraint. Returns (q, natural cost, iterations)."""
+        free = plan.free
+        mov = np.flatnonzero(~plan.pinned)  # a joint target (a hand shape) pins its joint
+        if self.naturalness is None or not mov.size:
+            return q, 0.0, 0
+        lo, hi = plan.lower[free], plan.upper[free]
+        n = free.size
+        e = self._evaluate(q, plan)
+        rn, Jn = self._natural(plan)
+        nat = float(rn @ rn)
+        radius, stalls, it = NATURAL_STEP, 0, 0
+        res = np.zeros(n)
+        R = np.zeros((n, n + 7))
+        eye = np.eye(mov.size)
+        for it in range(1, NATURAL_ITER + 1):
+            Jm, Jnm = e.J[:, mov], Jn[:, mov]
+            Hn = Jnm.T @ Jnm
+            gn = Jnm.T @ rn
+            locked = np.zeros(mov.size, bool)
+            N = eye
+            for _ in range(3):
+                A = np.vstack([Jm, eye[locked]]) if locked.any() else Jm
+                if A.shape[0]:
+                    _, S, Vt = np.linalg.svd(A, full_matrices=True)
+                    k = int(np.sum(S > NULL_TOL * S[0])) if S.size and S[0] > 0 else 0
+                    N = Vt[k:].T
+                if not N.shape[1]:
+                    break
+                B = N.T @ Hn @ N
+                B[np.diag_indices_from(B)] += 1e-3 * (np.trace(B) / N.shape[1] + 1e-12)
+                step_m = N @ -np.linalg.solve(B, N.T @ gn)
+                qm = q[free[mov]] + step_m
+                out = (qm < lo[mov] - 1e-12) | (qm > hi[mov] + 1e-12)
+                if not (out & ~locked).any():
+                    break
+                locked |= out
+            if not N.shape[1]:
+                break
+            step = np.zeros(n)
+            step[mov] = step_m
+            big = float(np.abs(step).max())
+            if big > radius:
+                step *= radius / big
+            q_new = q.copy()
+            q_new[free] = np.clip(q[free] + step, lo, hi)
+            e_new = self._evaluate(q_new, plan)
+            for _ in range(2):  # back onto the constraints (the step is first-order)
+                if not e_new.r.size or max(e_new.norms, default=0.0) <= stop:
+                    break
+                H = e_new.J.T @ e_new.J
+                H[np.diag_indices(n)] += 1e-9 * (np.trace(H) / n + 1.0)
+                res[:] = 0.0
+                mujoco.mju_boxQP(res, R, None, H, e_new.J.T @ e_new.r, lo - q_new[free],
+                                 hi - q_new[free])  # fmt: skip
+                q_new[free] = np.clip(q_new[free] + res, lo, hi)
+                e_new = self._evaluate(q_new, plan)
+            rn_new, Jn_new = self._natural(plan)
+            nat_new = float(rn_new @ rn_new)
+            # never further from a constraint than the polish started, nor deeper
+            bound = max(stop, max(e.norms, default=0.0))
+            ok = max(e_new.norms, default=0.0) <= bound and e_new.depth <= max(e.depth, 1e-5)
+            if ok and nat_new < nat:
+                gain = (nat - nat_new) / max(nat, 1e-12)
+                q, e, rn, Jn, nat = q_new, e_new, rn_new, Jn_new, nat_new
+                radius = min(2.0 * radius, MAX_STEP)
+                stalls = stalls + 1 if gain < 1e-3 else 0
+            else:
+                radius *= 0.25
+                stalls += 1 if radius < 1e-3 else 0
+            history.append(float(e.r @ e.r))
+            if stalls >= 2:
+                break
+        return q, nat, it
 
     def _restart_point(self, attempt, q_start, free):
         """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
@@ -358,7 +501,7 @@ class Solver:
         ``posture * (q - natural)`` weighted per dof; ``done`` when every constraint row norm is
         under ``stop`` (its tolerance fraction)."""
         free = plan.free
-        lo, hi = self.lower[free], self.upper[free]
+        lo, hi = plan.lower[free], plan.upper[free]
         w = self.dof_weight[free]
         nat = plan.prefer[free]
         q = q.copy()
@@ -376,7 +519,7 @@ class Solver:
         it = 0
         for it in range(1, self.max_iter + 1):
             if max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL:
-                return LMRun(q, cost, True, it - 1)
+                return LMRun(q, cost, True, it - 1, True)
             H = J.T @ J
             g = J.T @ r
             if posture:
@@ -416,7 +559,8 @@ class Solver:
             if mu > 1e3 or float(res @ res) < 1e-20:
                 break
         done = max(norms, default=0.0) <= stop and depth <= 2 * COLLISION_TOL
-        return LMRun(q, cost, done, it)
+        met = max(norms, default=0.0) <= 1.0 and depth <= 2 * COLLISION_TOL
+        return LMRun(q, cost, done, it, done or met)
 
     # -- equality constraints --------------------------------------------------------------
     def configure_equalities(self, problem: IKProblem, data: mujoco.MjData | None = None) -> int:
@@ -484,6 +628,19 @@ class LMRun:
     cost: float
     done: bool
     iterations: int
+    #: every constraint within its tolerance, nothing deeper than allowed (not ``done``
+    #: when it stalled short of the tolerance fraction)
+    met: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class Attempt:
+    """One attempt's posture, ``rank`` ((0, natural cost) when it meets every constraint
+    without penetration, else (1, constraint cost): lower is better), and iterations."""
+
+    q: np.ndarray
+    rank: tuple[int, float]
+    iterations: int
 
 
 @dataclasses.dataclass(frozen=True)
@@ -512,9 +669,14 @@ class Plan:
         self.joined = solver.joined_bodies(problem)
         self.floor = np.zeros((m.nbody, m.nbody))
         for a, b in self.joined:
-            self.floor[a, b] = -CONTACT_ALLOWANCE
+            # An attempt is done within 2 COLLISION_TOL of the floor: within the allowance.
+            self.floor[a, b] = -(CONTACT_ALLOWANCE - 2 * COLLISION_TOL)
+        self.lower, self.upper = solver.lower, solver.upper
+        self.effort = Effort(m, solver.effort_dofs)
+        self.natural = problem.natural
+        self.problem = problem
+        self.collide = problem.collide
         self.items: list[RowBlock] = []
-        self.collide = True
         self.prefer = solver.natural if problem.prefer is None else np.asarray(problem.prefer)
         self.cons = problem.constraints
         self.slide = {c.joint: m.jnt_type[solver.joint_id(c.joint)] == mujoco.mjtJoint.mjJNT_SLIDE
@@ -534,9 +696,14 @@ class Plan:
         self.r = np.zeros(row)
         self.tmp = np.empty((3, m.nv))
         self.collisions = Collisions(m, self.floor, self.free)
+        pinned = set()
         for c, item in zip(problem.constraints, self.items):
             if isinstance(c, JointTarget):
-                self.J[item.start, m.jnt_dofadr[solver.joint_id(c.joint)]] = 1.0
+                dof = int(m.jnt_dofadr[solver.joint_id(c.joint)])
+                self.J[item.start, dof] = 1.0
+                pinned.add(dof)
+        #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
+        self.pinned = np.isin(self.free, sorted(pinned))
 
     def _compile(self, c):
         """(fn(r_block, J_block), number of rows, rows already scaled by 1/tol)."""

@@ -31,6 +31,11 @@ MIN_BLEND = 0.08
 SAME_POSTURE = 2e-3
 #: Peak joint speed a blend is sized for [rad/s] (the limit is 25 rad/s).
 BLEND_SPEED = 12.0
+#: Fastest a joint may turn between two frames solved one by one [rad/s]: a per-frame
+#: solve stays on the branch of the frame before.
+MAX_JOINT_SPEED = 20.0
+#: Restarts of a per-frame solve (inside its step box) when its start does not converge.
+FRAME_RESTARTS = 1
 
 
 class Mode(enum.Enum):
@@ -49,6 +54,7 @@ class Key:
     q: np.ndarray  # (nq,) the component's solved posture (only this track's joints count)
     cons: tuple  # ik constraints of the component (hard), for frames inside this key
     free: tuple[str, ...]  # joints of the component
+    relax: bool = False  # a return to neutral: it blends from its start, not before it
 
 
 def minjerk(u: np.ndarray | float):
@@ -61,22 +67,36 @@ class Motion:
     """Frames from key postures on ``schedule`` (``mode`` flattened or multitrack); every IK
     result solved for them is kept in ``results``."""
 
-    def __init__(self, schedule: Schedule, mode: Mode):
+    def __init__(self, schedule: Schedule, mode: Mode, fps: float = 50.0):
         self.s, self.mode = schedule, mode
         self.solver, self.m, self.smap = schedule.solver, schedule.m, schedule.smap
         self.comp, self.blocks = schedule.comp, schedule.blocks
         self.track_joints, self.track_dofs = schedule.track_joints, schedule.track_dofs
         self.home = schedule.home
         self.results: list[ik.IKResult] = []
+        self.fps = fps
+        #: Largest joint change between two frames solved one by one [rad].
+        self.frame_step = MAX_JOINT_SPEED / fps
 
-    def solve(self, cons, free, q0, t: float) -> ik.IKResult:
-        """Solve ``cons`` moving joints ``free`` from ``q0``, allowing the contacts of time
-        ``t`` [s]; every result is kept in ``results``."""
-        names = self.s.body_names
-        touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
-        res = self.solver.solve(ik.IKProblem(tuple(cons), tuple(free), touching, q0), q0)
+    def solve(self, cons, free, q0, t: float, seeds=(), max_change=None,
+              natural: bool = True, preferences=(), restarts=None) -> ik.IKResult:  # fmt: skip
+        """Solve ``cons`` moving joints ``free`` from ``q0`` (and ``seeds``, other starts),
+        allowing the contacts of time ``t`` [s], each joint within ``max_change`` of ``q0``
+        if given; every result is kept in ``results``."""
+        problem = self.problem(cons, free, q0, t, seeds, max_change, natural, preferences)
+        if restarts is not None:
+            problem = dataclasses.replace(problem, restarts=restarts)
+        res = self.solver.solve(problem, q0)
         self.results.append(res)
         return res
+
+    def problem(self, cons, free, q0, t: float, seeds=(), max_change=None,
+                natural: bool = True, preferences=()) -> ik.IKProblem:  # fmt: skip
+        """The IK problem :meth:`solve` solves."""
+        names = self.s.body_names
+        touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
+        return ik.IKProblem(tuple(cons), tuple(free), touching, q0, tuple(seeds), max_change,
+                            natural, preferences=tuple(preferences))  # fmt: skip
 
     def soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
         """Soft targets keeping ``joints`` near posture ``qf`` (a blend to follow)."""
@@ -106,11 +126,14 @@ class Motion:
             if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
                 holds[-1][1] = k.end
             else:
-                holds.append([k.start, k.end, qk])
+                holds.append([k.start, k.end, qk, k.relax])
         prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
         first = True
-        for a, b, qk in holds:
-            if self.mode is Mode.FLATTENED:
+        for a, b, qk, relax in holds:
+            if relax:
+                need = max(MIN_BLEND, 1.875 * float(np.max(np.abs(qk - prev_q))) / BLEND_SPEED)
+                w0, w1 = a, min(b, a + max(need, min(MAX_BLEND, b - a)))
+            elif self.mode is Mode.FLATTENED:
                 w0, w1 = (a, a) if first else (prev_end, a)
             else:
                 gap = a - prev_end
@@ -141,11 +164,10 @@ class Motion:
         paths = {b.path: self.transpath_points(b, q, times) for b in tp}
         sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
         limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
-        prev = None
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
-            for tr in tracks:
+            for tr in sorted(tracks):  # sorted: the same rows in any process
                 # While blending toward the next posture, keep what both postures keep.
                 key = next((k for k in keys[tr] if k.start <= t < k.end), None)
                 nxt = next((k for k in keys[tr] if k.start > t), None)
@@ -163,17 +185,18 @@ class Motion:
                     # A blend that would pass through the body: push it out, staying close.
                     free = {j for tr in tracks for j in self.track_joints[tr]}
                     soft = self.soft_targets(q[f], free)
-                    q[f] = prev = self.solve(soft, sorted(free), q[f], t).qpos
+                    q[f] = self.solve(soft, sorted(free), q[f], t, max_change=self.frame_step,
+                                      restarts=0).qpos  # fmt: skip
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
             soft = self.soft_targets(q[f], free)
             q0 = q[f].copy()
-            if prev is not None:
+            if f > 0:  # from the frame before (final by now): the same branch
                 dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
-                q0[dofs] = prev[dofs]
-            res = self.solve(cons + soft, sorted(free), q0, t)
+                q0[dofs] = q[f - 1][dofs]
+            res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step,
+                             restarts=FRAME_RESTARTS)  # fmt: skip
             q[f] = res.qpos
-            prev = res.qpos
         return q
 
     def transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:

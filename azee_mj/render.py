@@ -8,6 +8,7 @@ first time something renders. Units: metres, seconds.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import subprocess
@@ -376,12 +377,16 @@ class Encoder:
     def __exit__(self, *exc):
         self._todo.put(None)
         self._thread.join()
+        if exc[0] is not None:  # failing, interrupted or terminated: that error wins
+            with contextlib.suppress(Exception):
+                if self._close is not None:
+                    self._close()
+            return
         try:
             if self._close is not None:
                 self._close()
         finally:
-            if exc[0] is None:
-                self._raise()
+            self._raise()
 
 
 def _contact_sheet(fr: FrameRenderer, clip: Clip, size, tick):

@@ -210,7 +210,8 @@ def _html(r: Realization, images: dict[str, bytes]) -> str:
         scale, unit = (1000.0, "mm") if tr.unit == "m" else (180 / np.pi, "deg")
         worst.setdefault(tr.block, []).append(
             f"#{tr.index} {tr.kind} {tr.worst * scale:.2f} {unit}"
-            + ("" if tr.ok else f" (over {tr.tol * scale:.2f})"))
+            + ("" if tr.ok else f" (over {tr.tol * scale:.2f})")
+            + (f": {tr.reason}" if tr.reason and not tr.ok else ""))
     rows = []
     for b in r.score.blocks():
         detail = ""
@@ -262,14 +263,14 @@ def write_report(
     ``ik_problems.png``, ``convergence.png`` and ``residuals.png`` in it. Atomic writes;
     returns the paths written."""
     from azee_mj.files import atomic_path
+    from azee_mj.timing import check_fps
 
     out_s = str(out)
     as_dir = out_s.endswith(("/", os.sep)) or Path(out).is_dir()
     if not as_dir and Path(out).suffix.lower() not in (".html", ".htm"):
         raise AzeeError(f"-o: expected REPORT.html or a directory DIR/ for PNG files, got "
                         f"{out_s!r}")  # fmt: skip
-    if fps <= 0:
-        raise AzeeError(f"--fps must be positive, got {fps:g}")
+    fps = check_fps(fps)
     _plt()
     tick = progress or (lambda f: None)
     r = realize_recorded(score, fps=fps, progress=lambda f: tick(0.5 * f))

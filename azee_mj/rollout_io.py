@@ -1,25 +1,38 @@
 """A :class:`~azee_mj.timeline.Rollout` to and from a ``.npz`` file (no pickle).
 
-Every array is time first: ``qpos`` (T, nq), ``site_pos`` (T, S, 3), ``residuals`` (T, C)
-for the C constraint traces. The schedule is stored as four parallel arrays and restored as
+Every array is time first: ``qpos`` (T, nq), ``site_pos`` (T, S, 3). The residual traces
+are stored sparsely, each over its block's frames only: ``residual_first`` (C,) first frame,
+``residual_count`` (C,) frames, ``residual_values`` (sum of counts,) concatenated, and
+``residual_reasons`` (C,) why each missed constraint missed ("" if met; optional); files
+written before this layout hold a dense ``residuals`` (T, C) (NaN outside) and still load.
+The schedule is stored as parallel arrays and restored as
 :class:`~azee_mj.schedule.TrackInterval` records. A file holding only the required arrays
 (``time``, ``qpos``, ``fps``, ``site_names``, ``site_pos``) loads with an empty schedule,
 no traces and zero stats.
+
+:func:`load_rollout` validates everything it reads (names, shapes, dtypes, finite values,
+fps, sizes announced by array headers before reading them) and raises
+:class:`~azee_mj.errors.InputFileError` with one line; it never lets a corrupt or hostile
+file end in a traceback or a huge allocation.
 """
 
 from __future__ import annotations
 
 import os
+import zipfile
 
 import numpy as np
 
-from azee_mj.errors import InputFileError
+from azee_mj.errors import InputFileError, shorten
 from azee_mj.files import save_npz
 from azee_mj.schedule import TrackInterval
 from azee_mj.timeline import ConstraintTrace, Mode, Rollout, SolveStats
+from azee_mj.timing import MAX_FPS, MAX_FRAMES, MIN_FPS
 
 #: Arrays every rollout file holds.
 REQUIRED = ("time", "qpos", "fps", "site_names", "site_pos")
+#: Largest array data a rollout file may announce [bytes] (1 hour at 50 fps fits easily).
+MAX_BYTES = 2 * 1024**3
 
 _STATS = ("problems", "key_problems", "iterations", "not_converged", "solve_time", "total_time")
 
@@ -39,62 +52,193 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
         "residual_names": np.array([f"{t.block}#{t.index}" for t in tr], dtype=str),
         "residual_kinds": np.array([t.kind for t in tr], dtype=str),
         "residual_units": np.array([t.unit for t in tr], dtype=str),
-        "residual_tol": np.array([t.tol for t in tr]),
-        "residual_span": np.array([(t.start, t.end) for t in tr]).reshape(len(tr), 2),
-        "residuals": np.array([t.values for t in tr]).reshape(len(tr), len(r.time)).T,
+        "residual_reasons": np.array([t.reason for t in tr], dtype=str),
+        "residual_tol": np.array([t.tol for t in tr], dtype=float),
+        "residual_span": np.array([(t.start, t.end) for t in tr], dtype=float).reshape(len(tr), 2),
+        "residual_first": np.array([t.first for t in tr], dtype=np.int64),
+        "residual_count": np.array([len(t.active) for t in tr], dtype=np.int64),
+        "residual_values": (np.concatenate([t.active for t in tr]) if tr else np.zeros(0)),
         "schedule_track": np.array([i.track for i in ivs], dtype=str),
         "schedule_block": np.array([i.block for i in ivs], dtype=str),
-        "schedule_span": np.array([(i.start, i.end) for i in ivs]).reshape(len(ivs), 2),
+        "schedule_span": np.array([(i.start, i.end) for i in ivs], dtype=float).reshape(len(ivs), 2),
         "stats": np.array([float(getattr(s, k)) for k in _STATS]),
-        "stats_iterations": np.asarray(s.per_problem_iterations),
+        "stats_iterations": np.asarray(s.per_problem_iterations, dtype=np.int64),
     }
 
 
-def save_rollout(path: str | os.PathLike, rollout: Rollout) -> None:
-    """Write ``rollout`` to ``path`` atomically."""
-    save_npz(path, rollout_arrays(rollout))
+def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
+    """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace)."""
+    save_npz(path, rollout_arrays(rollout), inputs)
 
 
-def load_rollout(path: str | os.PathLike, nq: int) -> Rollout:
-    """Read a rollout ``.npz`` written for a model with ``nq`` joint coordinates; raise
-    :class:`InputFileError` naming what is wrong."""
+def _read_arrays(path) -> dict[str, np.ndarray]:
+    """Every array of the ``.npz`` at ``path``, after checking each header's announced size
+    against the member's size and :data:`MAX_BYTES`."""
     try:
+        with zipfile.ZipFile(path) as zf:
+            total = 0
+            for info in zf.infolist():
+                with zf.open(info) as f:
+                    version = np.lib.format.read_magic(f)
+                    if version == (1, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                    else:
+                        shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+                if dtype.hasobject:
+                    raise InputFileError(f"{path}: array {info.filename!r} holds Python "
+                                         "objects; a rollout holds numbers and text")  # fmt: skip
+                need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                total += need
+                if need > info.file_size or total > MAX_BYTES:
+                    raise InputFileError(f"{path}: array {info.filename!r} announces shape "
+                                         f"{shorten(str(shape), 60)}, more than the file holds "
+                                         "or than a rollout may be")  # fmt: skip
         with np.load(path, allow_pickle=False) as z:
-            a = {k: z[k] for k in z.files}
+            return {k: z[k] for k in z.files}
+    except InputFileError:
+        raise
     except FileNotFoundError:
         raise InputFileError(f"{path}: no such file") from None
-    except (OSError, ValueError) as e:
-        raise InputFileError(f"{path}: not a rollout .npz file ({e})") from None
+    except IsADirectoryError:
+        raise InputFileError(f"{path}: is a directory, not a rollout .npz file") from None
+    except PermissionError:
+        raise InputFileError(f"{path}: cannot be read (permission denied)") from None
+    except Exception as e:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds on damage
+        what = shorten(str(e).splitlines()[0] if str(e) else type(e).__name__, 100)
+        raise InputFileError(f"{path}: not a rollout .npz file, or damaged ({what})") from None
+
+
+def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = False) -> Rollout:
+    """Read a rollout ``.npz`` written for a model with ``nq`` joint coordinates; raise
+    :class:`InputFileError` naming what is wrong. Non-finite postures are an error unless
+    ``allow_nonfinite`` (``check`` reports them as findings instead)."""
+    with np.errstate(all="ignore"):  # hostile values are reported, not warned about
+        return _load(path, nq, allow_nonfinite)
+
+
+def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
+    a = _read_arrays(path)
+
+    def bad(what: str) -> InputFileError:
+        return InputFileError(f"{path}: {what}")
+
     missing = [k for k in REQUIRED if k not in a]
     if missing:
-        raise InputFileError(
-            f"{path}: missing array(s) {', '.join(missing)}; a rollout holds "
-            f"{', '.join(REQUIRED)}"
-        )
-    q, time = a["qpos"], a["time"]
-    if q.ndim != 2 or len(q) != len(time):
-        raise InputFileError(f"{path}: qpos must be (T, nq) with T = len(time) = "
-                             f"{len(time)}; got shape {q.shape}")  # fmt: skip
+        raise bad(f"missing array(s) {', '.join(missing)}; a rollout holds {', '.join(REQUIRED)}")
+
+    def get(k: str) -> np.ndarray:
+        if k not in a:
+            group = k.split("_")[0]
+            raise bad(f"missing array '{k}' (the {group}_* arrays come together)")
+        return a[k]
+
+    def numeric(k: str, ndim: int | None = None) -> np.ndarray:
+        v = get(k)
+        if v.dtype.kind not in "fiu":
+            raise bad(f"array '{k}' must hold numbers, got dtype {v.dtype}")
+        if ndim is not None and v.ndim != ndim:
+            raise bad(f"array '{k}' must have {ndim} dimension(s), got shape {v.shape}")
+        return v.astype(float) if v.dtype.kind != "f" or v.dtype != np.float64 else v
+
+    def text(k: str) -> np.ndarray:
+        v = get(k)
+        if v.dtype.kind != "U" or v.ndim != 1:
+            raise bad(f"array '{k}' must be a list of names, got dtype {v.dtype} shape {v.shape}")
+        return v
+
+    fps_a = numeric("fps")
+    if fps_a.size != 1:
+        raise bad(f"fps must be one number, got shape {fps_a.shape}")
+    fps = float(fps_a.reshape(()))
+    if not (np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise bad(f"fps must be a number from {MIN_FPS:g} to {MAX_FPS:g}, got {fps:g}")
+    time, q = numeric("time", 1), numeric("qpos")
+    T = len(time)
+    if not 1 <= T <= MAX_FRAMES:
+        raise bad(f"{T} frames; a rollout has 1 to {MAX_FRAMES}")
+    if not np.isfinite(time).all() or (T > 1 and not (np.diff(time) > 0).all()):
+        raise bad("time must be finite and increasing")
+    if q.ndim != 2 or len(q) != T:
+        raise bad(f"qpos must be (T, nq) with T = len(time) = {T}; got shape {q.shape}")
     if q.shape[1] != nq:
-        raise InputFileError(f"{path}: qpos has {q.shape[1]} columns; the bundled signer "
-                             f"has nq={nq}")  # fmt: skip
+        raise bad(f"qpos has {q.shape[1]} columns; the bundled signer has nq={nq}")
+    names = text("site_names")
+    sp = numeric("site_pos")
+    if sp.shape != (T, len(names), 3):
+        raise bad(f"site_pos must be (T, S, 3) = ({T}, {len(names)}, 3); got shape {sp.shape}")
+    if not allow_nonfinite:
+        for k, v in (("qpos", q), ("site_pos", sp)):
+            badf = np.flatnonzero(~np.isfinite(v.reshape(T, -1)).all(axis=1))
+            if badf.size:
+                raise bad(f"{k} is not finite at {badf.size} frame(s), first at frame "
+                          f"{badf[0]}")  # fmt: skip
+
     schedule: dict[str, list[TrackInterval]] = {}
-    for track, block, (start, end) in zip(a.get("schedule_track", ()), a.get("schedule_block", ()),
-                                          a.get("schedule_span", ()), strict=True):  # fmt: skip
-        schedule.setdefault(str(track), []).append(
-            TrackInterval(str(track), str(block), float(start), float(end)))
-    traces = []
-    if "residual_kinds" in a:
-        for j, name in enumerate(a["residual_names"]):
-            block, index = str(name).rsplit("#", 1)
-            start, end = a["residual_span"][j]
-            traces.append(ConstraintTrace(
-                block, int(index), str(a["residual_kinds"][j]), float(a["residual_tol"][j]),
-                str(a["residual_units"][j]), float(start), float(end), a["residuals"][:, j]))
-    st = a["stats"] if "stats" in a else np.zeros(len(_STATS))
+    if "schedule_track" in a:
+        tracks, blocks = text("schedule_track"), text("schedule_block")
+        spans = numeric("schedule_span", 2)
+        if not (len(tracks) == len(blocks) == len(spans) and spans.shape[1:] == (2,)):
+            raise bad("schedule_track, schedule_block and schedule_span must have one row each "
+                      "per interval, spans (N, 2)")  # fmt: skip
+        for track, block, (start, end) in zip(tracks, blocks, spans):
+            schedule.setdefault(str(track), []).append(
+                TrackInterval(str(track), str(block), float(start), float(end)))
+    traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
+    st = numeric("stats", 1) if "stats" in a else np.zeros(len(_STATS))
+    if len(st) != len(_STATS) or not np.isfinite(st).all() or (st[:4] < 0).any() or (
+            st[:4] > 2**53).any():  # fmt: skip
+        raise bad(f"stats must be {len(_STATS)} finite counts and times")
+    its = numeric("stats_iterations", 1) if "stats_iterations" in a else np.zeros(0)
     stats = SolveStats(int(st[0]), int(st[1]), int(st[2]), int(st[3]), float(st[4]),
-                       float(st[5]), a.get("stats_iterations", np.zeros(0, int)))  # fmt: skip
-    mode = Mode(str(a["mode"])) if "mode" in a else Mode.MULTITRACK
-    return Rollout(float(a["fps"]), mode, time, q, tuple(str(n) for n in a["site_names"]),
-                   a["site_pos"], {k: tuple(v) for k, v in schedule.items()}, tuple(traces),
-                   stats)  # fmt: skip
+                       float(st[5]), its.astype(np.int64, copy=False) if np.isfinite(its).all()
+                       else np.zeros(0, np.int64))  # fmt: skip
+    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
+    if mode_s not in {m.value for m in Mode}:
+        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
+    return Rollout(fps, Mode(mode_s), time, q, tuple(str(n) for n in names), sp,
+                   {k: tuple(v) for k, v in schedule.items()}, tuple(traces), stats)  # fmt: skip
+
+
+def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:
+    names, kinds, units = text("residual_names"), text("residual_kinds"), text("residual_units")
+    tol, span = numeric("residual_tol", 1), numeric("residual_span", 2)
+    C = len(names)
+    # Files written before the diagnosed reasons were stored have none.
+    reasons = text("residual_reasons") if "residual_reasons" in a else np.full(C, "")
+    if not (len(kinds) == len(units) == len(tol) == len(span) == len(reasons) == C
+            and span.shape[1:] == (2,)):  # fmt: skip
+        raise bad("the residual_* arrays must have one row per constraint")
+    if "residual_values" in a:  # sparse
+        first, count = numeric("residual_first", 1), numeric("residual_count", 1)
+        if not (np.isfinite(first).all() and np.isfinite(count).all()
+                and (first == np.round(first)).all() and (count == np.round(count)).all()
+                and (np.abs(first) <= MAX_FRAMES).all() and (np.abs(count) <= MAX_FRAMES).all()):
+            raise bad("residual_first and residual_count must be whole numbers")
+        first, count = first.astype(np.int64), count.astype(np.int64)
+        vals = numeric("residual_values", 1)
+        if len(first) != C or len(count) != C or (first < 0).any() or (count < 0).any() or (
+                first + count > T).any() or count.sum() != len(vals):  # fmt: skip
+            raise bad("residual_first / residual_count do not match the frames and "
+                      "residual_values")  # fmt: skip
+        offsets = np.concatenate([[0], np.cumsum(count)])
+        parts = [(int(first[j]), vals[offsets[j] : offsets[j + 1]]) for j in range(C)]
+    else:  # dense (T, C), NaN outside each block
+        dense = numeric("residuals", 2)
+        if dense.shape != (T, C):
+            raise bad(f"residuals must be (T, C) = ({T}, {C}); got shape {dense.shape}")
+        parts = []
+        for j in range(C):
+            inside = np.flatnonzero(~np.isnan(dense[:, j]))
+            f0 = int(inside[0]) if inside.size else 0
+            f1 = int(inside[-1]) + 1 if inside.size else 0
+            parts.append((f0, dense[f0:f1, j].copy()))
+    out = []
+    for j, name in enumerate(names):
+        block, sep, index = str(name).rpartition("#")
+        if not sep or not index.isdigit() or len(index) > 9:
+            raise bad(f"residual name {shorten(str(name), 60)!r} is not BLOCK#INDEX")
+        f0, active = parts[j]
+        out.append(ConstraintTrace(block, int(index), str(kinds[j]), float(tol[j]),
+                                   str(units[j]), float(span[j][0]), float(span[j][1]), f0,
+                                   active, T, str(reasons[j])))  # fmt: skip
+    return out

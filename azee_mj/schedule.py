@@ -16,11 +16,12 @@ import mujoco
 import numpy as np
 
 from azee_mj import constraints as cn
-from azee_mj import ik
+from azee_mj import ik, natural
 from azee_mj import score as sc
 from azee_mj.kinematics import compile_point, compile_vector
 from azee_mj.model import MODEL_PATH
 from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.timing import frame_range
 
 #: How dear moving a track's joints is, relative to an arm joint (1): the trunk and neck are
 #: dearer to move than the arms, and a clavicle joint costs CLAVICLE_WEIGHT.
@@ -43,8 +44,10 @@ def make_solver(
     the joint weights of ``signer_map`` (default :data:`~azee_mj.sites.DEFAULT_MAP`);
     ``options`` go to the solver (``seed``, ``max_iter``, ``on_solve``, ...)."""
     smap = signer_map or DEFAULT_MAP
-    return ik.Solver(MODEL_PATH if model is None else model, joint_weights=joint_weights(smap),
-                     **options)  # fmt: skip
+    solver = ik.Solver(MODEL_PATH if model is None else model, joint_weights=joint_weights(smap),
+                       **options)  # fmt: skip
+    solver.set_naturalness(natural.from_signer_map(solver.model, smap, solver.natural))
+    return solver
 
 
 # ---------------------------------------------------------------------------------------
@@ -108,22 +111,45 @@ class Compiler:
         limb = {t for t in tracks if not t.startswith(("hand", "spine"))}
         return limb or tracks
 
-    def partner_sites(self, c) -> tuple[str, ...]:
-        """Model sites of the other part when placement ``c`` brings two parts together.
-
-        A placement at a bare body site is a contact: both parts move to meet. A placement
-        at a point that reads sites of an arm or hand (``@I_TIP(w)`` translated, the middle
-        of two fingertips) also moves that arm, since the point rides on it; a point that
-        reads only the head or trunk is a location that stays where the body holds it.
-        """
+    def contact_sites(self, c) -> tuple[str, ...]:
+        """Model sites a placement ``c`` may touch: the target of a placement at a bare body
+        site, or the sites of another arm or hand its target point is built from."""
         if not isinstance(c, sc.Place):
             return ()
         if isinstance(c.at, sc.PSite):
             return () if c.at.ref.locus else (self.site(c.at.ref),)
+        return self.partner_sites(c)
+
+    def partner_sites(self, c) -> tuple[str, ...]:
+        """Model sites of another arm or hand that placement ``c`` brings its site to.
+
+        That arm moves too, both parts meeting (a hand on the other hand or forearm, a point
+        beside the other wrist). A target on the head, the trunk, a shoulder or an upper arm
+        is a location the body holds where it is: the hand goes to the face, not the face to
+        the hand.
+        """
+        if not isinstance(c, sc.Place):
+            return ()
         own = self.site_tracks(self.site(c.site))
-        sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
-        return tuple(s for s in sites
-                     if any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+        if isinstance(c.at, sc.PSite):
+            sites = [] if c.at.ref.locus else [self.site(c.at.ref)]
+        else:
+            sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
+        return tuple(s for s in sites if self.on_forearm(s)
+                     and any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+
+    def on_forearm(self, site: str) -> bool:
+        """Whether model ``site`` rides on a forearm or hand (a part the other arm brings to
+        a contact; the shoulder and the upper arm stay where they are)."""
+        m = self.m
+        body = int(m.site_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)])
+        fore = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, self.smap.bones[b].body)
+                for b in ("f_arm_L", "f_arm_R") if b in self.smap.bones}  # fmt: skip
+        while body > 0:
+            if body in fore:
+                return True
+            body = int(m.body_parentid[body])
+        return False
 
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
@@ -134,7 +160,11 @@ class Compiler:
             return out
         if isinstance(c, sc.Orient):
             body = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, c.bone.model_body(self.smap))
-            return self.body_tracks(body, own_only=True)
+            own = self.body_tracks(body, own_only=True)
+            if all(t.startswith("hand") for t in own):
+                # a finger points with the whole arm, not by bending against its hand shape
+                own |= {t for t in self.body_tracks(body, own_only=False) if t.startswith("arm")}
+            return own
         if isinstance(c, sc.MorphC):
             out = set()
             for j in self.morph_changes(c):
@@ -206,23 +236,42 @@ class Schedule:
         self.home = solver.natural.copy()
         self.blocks = [b for b in score.blocks()]
         self.by_path = {b.path: b for b in self.blocks}
+        self.hands = [solver.body_id(self.smap.bones[f"palm_{x}"].body)
+                      for x in ("L", "R") if f"palm_{x}" in self.smap.bones]  # fmt: skip
         self.contacts = self._contact_windows()
         self._moved_cache: dict = {}
         self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
                            for b in range(self.m.nbody)]  # fmt: skip
 
     def _contact_windows(self) -> list[ContactWindow]:
-        """The window of every contact constraint of the score."""
+        """The windows of the body pairs each contact constraint of the score may bring
+        together: a hand counts as one part (its fingers touch too)."""
         out = []
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
-                partners = self.comp.partner_sites(c)
+                partners = self.comp.contact_sites(c)
                 if partners:
-                    body = int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
+                    mine = self.part(int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))]))
                 for s in partners:
-                    other = int(self.m.site_bodyid[self.solver.site_id(s)])
-                    out.append(ContactWindow(b.start, b.end, body, other))
+                    other = self.part(int(self.m.site_bodyid[self.solver.site_id(s)]))
+                    out += [ContactWindow(b.start, b.end, x, y) for x in mine for y in other
+                            if x != y]  # fmt: skip
         return out
+
+    def part(self, body: int) -> tuple[int, ...]:
+        """The bodies that touch as one with ``body``: its whole hand if it is in one."""
+        for hand in self.hands:
+            if self.below(body, hand):
+                return tuple(b for b in range(self.m.nbody) if self.below(b, hand))
+        return (body,)
+
+    def below(self, body: int, ancestor: int) -> bool:
+        """Whether ``body`` is ``ancestor`` or one of its descendants."""
+        while body > 0:
+            if body == ancestor:
+                return True
+            body = int(self.m.body_parentid[body])
+        return False
 
     def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
@@ -308,6 +357,7 @@ def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
     r = Schedule(score, solver or make_solver())
     out: dict[int, set[tuple[str, str]]] = {}
     for w in r.contacts:
-        for f in np.flatnonzero((times >= w.start - 1e-9) & (times < w.end)):
+        fps = (len(times) - 1) / times[-1] if len(times) > 1 and times[-1] > 0 else 1.0
+        for f in frame_range(w.start, w.end, fps, len(times)):
             out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
     return {f: frozenset(v) for f, v in out.items()}

@@ -124,6 +124,10 @@ class SignerMap:
       loci: locus name (``ssp``) -> model site name.
       morphs: morph id -> :class:`Morph`.
       tracks: articulator track -> model joint names it owns (used by the scheduler).
+      normals: AZee site -> outward unit normal of the skin at the site, in its body frame,
+        for every site on the skin (on the collision surface of its body part): a contact
+        between two such sites meets face to face, normals opposed.
+      interior: the AZee sites that are not on the skin (joint centres, the tongue tip).
     """
 
     sites: Mapping[str, str]
@@ -131,6 +135,9 @@ class SignerMap:
     loci: Mapping[str, str]
     morphs: Mapping[str, Morph]
     tracks: Mapping[str, tuple[str, ...]]
+    normals: Mapping[str, tuple[float, float, float]] = dataclasses.field(
+        default_factory=lambda: MappingProxyType({}))  # fmt: skip
+    interior: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
         """The catalogue as printed by ``azee-mj sites --json``."""
@@ -142,6 +149,8 @@ class SignerMap:
             },
             "loci": dict(self.loci),
             "morphs": list(self.morphs),
+            "normals": {k: list(v) for k, v in self.normals.items()},
+            "interior": list(self.interior),
         }
 
     def renamed(self, rename_site=None, rename_body=None, rename_joint=None) -> "SignerMap":
@@ -163,6 +172,8 @@ class SignerMap:
                 }
             ),
             tracks=_frozen({k: tuple(rj(j) for j in v) for k, v in self.tracks.items()}),
+            normals=self.normals,
+            interior=self.interior,
         )
 
 
@@ -181,7 +192,7 @@ def _frozen(d: dict) -> Mapping:
 def _unit(v) -> tuple[float, float, float]:
     a = np.asarray(v, float)
     a = a / np.linalg.norm(a)
-    return tuple(round(float(x), 6) for x in a)
+    return tuple(round(float(x), 6) + 0.0 for x in a)  # + 0.0: no -0.0
 
 
 def _mirror(v) -> tuple[float, float, float]:
@@ -195,10 +206,24 @@ def _mirror(v) -> tuple[float, float, float]:
 # vectors are given; the left side mirrors them (y -> -y).
 # ---------------------------------------------------------------------------------------
 
-#: Right-hand thumb axis and pad normal at qpos0 (thumb down and forward, pad toward the
-#: index finger side of the palm).
-THUMB_DIR_R = _unit((0.45, 0.30, -0.84))
-THUMB_NRM_R = _unit(np.cross(np.cross(THUMB_DIR_R, (-0.45, 0.89, 0.0)), THUMB_DIR_R))
+#: Right-hand thumb axis and pad normal at qpos0. The thumb is adducted: it lies along the
+#: radial (index) edge of the hand in the palm plane, diverging 25 degrees from the hand's
+#: long axis and tilted 3 degrees palmar so that its three capsules (radii 11.5, 9.5 and
+#: 8.5 mm) are flush with the palm's face; its pad faces the index finger (ulnar, in the
+#: palm plane), so that MCP and IP flexion curl it across the palm.
+_THUMB_DIVERGE, _THUMB_TILT = np.radians(25.0), np.radians(3.0)
+THUMB_DIR_R = _unit((np.sin(_THUMB_DIVERGE) * np.cos(_THUMB_TILT), np.sin(_THUMB_TILT),
+                     -np.cos(_THUMB_DIVERGE) * np.cos(_THUMB_TILT)))  # fmt: skip
+THUMB_NRM_R = _unit(np.cross((0.0, 1.0, 0.0), THUMB_DIR_R))
+#: The thumb of the `fist` morph [rad]: abducted out of the palm plane and curled over the
+#: index and middle fingers' middle phalanges.
+FIST_THUMB = MappingProxyType({"thumb_{X}_1_flex": -0.2, "thumb_{X}_1_abd": 0.9,
+                               "thumb_{X}_2_flex": 0.5, "thumb_{X}_3_flex": 0.9})  # fmt: skip
+#: A thumb-up hand's thumb [rad]: straight, along the radial side of the closed fingers.
+THUMB_UP = MappingProxyType({"thumb_{X}_1_flex": -0.2, "thumb_{X}_1_abd": 0.15,
+                             "thumb_{X}_2_flex": 0.0, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+#: Thumb MCP flexion [rad] that lays the adducted thumb's phalanges along the index finger.
+THUMB_FLAT_MCP = round(float(np.radians(25.0)), 6)
 
 _UP, _DOWN, _FWD = (0.0, 0.0, 1.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0)
 _PALMAR_R = (0.0, 1.0, 0.0)  # the right palm faces the body's midline at rest
@@ -266,38 +291,109 @@ def _finger_joints(fingers=FINGERS) -> list[str]:
     return [f"{f}_{{X}}_{n}_flex" for f in fingers for n in PHALANGES]
 
 
+#: Handshape joint angles [rad]: a thumb (1_flex, 1_abd, 2_flex, 3_flex) and a finger
+#: (1_flex, 1_spread, 2_flex, 3_flex).
+_STRAIGHT = (0.0, 0.0, 0.0, 0.0)
+_CLOSED = (1.5, 0.0, 1.65, 1.0)  # curled into the palm, as the fist morph
+_T_SIDE = (0.0, 0.0, THUMB_FLAT_MCP, 0.0)  # adducted along the index, as the flat morph
+_THUMB = ("1_flex", "1_abd", "2_flex", "3_flex")
+_T_ACROSS = tuple(FIST_THUMB[f"thumb_{{X}}_{j}"] for j in _THUMB)  # over the closed fingers
+_T_OUT = (-0.4, 0.2, 0.0, 0.0)  # away from the palm, in its plane
+_T_UP = tuple(THUMB_UP[f"thumb_{{X}}_{j}"] for j in _THUMB)  # straight up from a fist
+_T_IN = _T_ACROSS  # folded across the palm
+_T_OPP = (-0.3, 1.0, 0.3, 1.2)  # opposed: its tip 3 mm from the curved index's tip
+_CURVED = (1.0, 0.0, 1.1, 0.7)  # curved to meet the opposed thumb
+
+
+def _hs(thumb, index, middle, ring, little) -> tuple[tuple[float, ...], ...]:
+    return (thumb, index, middle, ring, little)
+
+
+def _sp(f, spread):
+    return (f[0], spread, f[2], f[3])
+
+
+#: Named handshapes of French Sign Language and HamNoSys (morphs ``hs_NAME``), as joint
+#: angles of one hand: (thumb, index, middle, ring, little), see ``_hs``. A score applies
+#: one at weight 1 from the rest hand; other morphs add to it.
+HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
+    "flat": _hs(_T_SIDE, _STRAIGHT, _STRAIGHT, _STRAIGHT, _STRAIGHT),
+    "bent": _hs(_T_SIDE, *[(1.3, 0.0, 0.0, 0.0)] * 4),
+    "a": _hs(_T_SIDE, *[_CLOSED] * 4),
+    "s": _hs(_T_ACROSS, *[_CLOSED] * 4),
+    "index": _hs(_T_ACROSS, _STRAIGHT, _CLOSED, _CLOSED, _CLOSED),
+    "v": _hs(_T_ACROSS, _sp(_STRAIGHT, 0.25), _sp(_STRAIGHT, -0.15), _CLOSED, _CLOSED),
+    "h": _hs(_T_ACROSS, _STRAIGHT, _STRAIGHT, _CLOSED, _CLOSED),
+    "3": _hs(_T_OUT, _sp(_STRAIGHT, 0.25), _sp(_STRAIGHT, -0.15), _CLOSED, _CLOSED),
+    "w": _hs(_T_IN, _sp(_STRAIGHT, 0.25), _STRAIGHT, _sp(_STRAIGHT, -0.25), _CLOSED),
+    "4": _hs(_T_IN, _sp(_STRAIGHT, 0.15), _STRAIGHT, _sp(_STRAIGHT, -0.1),
+             _sp(_STRAIGHT, -0.2)),
+    "5": _hs(_T_OUT, _sp(_STRAIGHT, 0.3), _STRAIGHT, _sp(_STRAIGHT, -0.2),
+             _sp(_STRAIGHT, -0.4)),
+    "claw": _hs((-0.3, 0.3, 0.5, 0.5), (0.3, 0.3, 1.0, 0.8), (0.3, 0.0, 1.0, 0.8),
+                (0.3, -0.2, 1.0, 0.8), (0.3, -0.4, 1.0, 0.8)),
+    "l": _hs(_T_OUT, _STRAIGHT, _CLOSED, _CLOSED, _CLOSED),
+    "y": _hs(_T_OUT, _CLOSED, _CLOSED, _CLOSED, _sp(_STRAIGHT, -0.4)),
+    "i": _hs(_T_ACROSS, _CLOSED, _CLOSED, _CLOSED, _STRAIGHT),
+    "horns": _hs(_T_ACROSS, _STRAIGHT, _CLOSED, _CLOSED, _STRAIGHT),
+    "x": _hs(_T_ACROSS, (0.3, 0.0, 1.3, 1.0), _CLOSED, _CLOSED, _CLOSED),
+    "bent_v": _hs(_T_ACROSS, (0.0, 0.25, 1.3, 1.0), (0.0, -0.15, 1.3, 1.0), _CLOSED, _CLOSED),
+    "thumb": _hs(_T_UP, *[_CLOSED] * 4),
+    "c": _hs((0.0, 0.35, 0.1, 0.1), *[(0.6, 0.0, 0.7, 0.4)] * 4),
+    "o": _hs(_T_OPP, *[_CURVED] * 4),
+    "flat_o": _hs((0.4, 0.7, 0.1, -0.05), *[(1.05, 0.0, 0.35, 0.2)] * 4),
+    "f": _hs(_T_OPP, _CURVED, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15),
+             _sp(_STRAIGHT, -0.3)),
+    "pinch": _hs(_T_OPP, _CURVED, _CLOSED, _CLOSED, _CLOSED),
+}  # fmt: skip
+
+
+def handshape_changes(name: str) -> dict[str, float]:
+    """The joint changes [rad] of morph ``hs_<name>`` (joint names with ``{X}``)."""
+    thumb, *fingers = HANDSHAPES[name]
+    out = {f"thumb_{{X}}_{j}": v for j, v in zip(_THUMB, thumb)}
+    for f, angles in zip(FINGERS, fingers):
+        out.update({f"{f}_{{X}}_{j}": v
+                    for j, v in zip(("1_flex", "1_spread", "2_flex", "3_flex"), angles)})
+    return out
+
+
 def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     """Morph id -> (joint change at weight 1 [rad / m], sided)."""
     m: dict[str, tuple[dict[str, float], bool]] = {}
     for f in FINGERS:
         m[f"{f}_bend"] = ({f"{f}_{{X}}_1_flex": 1.45}, True)
         m[f"{f}_hook"] = ({f"{f}_{{X}}_2_flex": 1.5, f"{f}_{{X}}_3_flex": 1.2}, True)
-    m["thumb_bend"] = ({"thumb_{X}_2_flex": 0.9, "thumb_{X}_3_flex": 0.6}, True)
-    m["thumb_hook"] = ({"thumb_{X}_3_flex": 1.2}, True)
+    # (the thumb leaves the palm plane, palmar, before it curls: it curls across the palm)
+    m["thumb_bend"] = ({"thumb_{X}_1_abd": 0.5, "thumb_{X}_2_flex": 0.9,
+                        "thumb_{X}_3_flex": 0.6}, True)  # fmt: skip
+    m["thumb_hook"] = ({"thumb_{X}_1_abd": 0.3, "thumb_{X}_3_flex": 1.2}, True)
     m["thumb_opposed"] = ({"thumb_{X}_1_flex": 0.5, "thumb_{X}_1_abd": 0.9}, True)
     m["thumb_spread"] = ({"thumb_{X}_1_flex": -0.4, "thumb_{X}_1_abd": 0.2}, True)
-    m["thumb_extended"] = (
-        {"thumb_{X}_1_flex": -0.3, "thumb_{X}_1_abd": 0.6, "thumb_{X}_2_flex": 0.0,
-         "thumb_{X}_3_flex": 0.0},
-        True,
-    )  # fmt: skip
+    # Morphs add (clipped to the ranges): thumb_extended is the change from the fist's thumb
+    # to a straight thumb along the fist's radial side, so fist + thumb_extended (a thumb-up
+    # hand) has a straight thumb. Alone (or with `flat`) its negative changes clip at the
+    # ranges: a straight thumb, its tip bent back 20 degrees.
+    m["thumb_extended"] = ({j: THUMB_UP[j] - FIST_THUMB[j] for j in FIST_THUMB}, True)
+    # The thumb spreads too: it lies along the index finger, which spreads toward it.
     m["fingers_spread"] = (
         {"index_{X}_1_spread": 0.3, "middle_{X}_1_spread": 0.0, "ring_{X}_1_spread": -0.2,
-         "little_{X}_1_spread": -0.4},
+         "little_{X}_1_spread": -0.4, "thumb_{X}_1_abd": 0.3},
         True,
     )  # fmt: skip
     fist = {j: v for f in FINGERS for j, v in
             ((f"{f}_{{X}}_1_flex", 1.5), (f"{f}_{{X}}_2_flex", 1.65), (f"{f}_{{X}}_3_flex", 1.0))}
-    # thumb curled over the index finger's middle phalanx (no interpenetration in the bundled
-    # signer's collision geometry)
-    fist.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.1,
-                 "thumb_{X}_2_flex": 0.8, "thumb_{X}_3_flex": 1.2})  # fmt: skip
+    # thumb curled over the index and middle fingers' middle phalanges, 1 mm clear of them
+    fist.update(FIST_THUMB)
     m["fist"] = (fist, True)
     flat = {j: 0.0 for j in _finger_joints()}
     flat.update({f"{f}_{{X}}_1_spread": 0.0 for f in FINGERS})
-    flat.update({"thumb_{X}_1_flex": 0.2, "thumb_{X}_1_abd": 0.1,
-                 "thumb_{X}_2_flex": 0.0, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+    # the thumb adducted along the index finger, in the palm plane (its phalanges parallel)
+    flat.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.0,
+                 "thumb_{X}_2_flex": THUMB_FLAT_MCP, "thumb_{X}_3_flex": 0.0})  # fmt: skip
     m["flat"] = (flat, True)
+    for name in HANDSHAPES:  # the rest hand is at 0 on every hand joint
+        m[f"hs_{name}"] = (handshape_changes(name), True)
     m["shoulder_raise"] = ({"clav_{X}_elev": 0.45}, True)
     m["shoulder_shrug"] = ({"clav_{X}_elev": 0.35, "clav_{X}_prot": 0.15}, True)
     m["spine_extended"] = ({"back_1_flex": -0.15, "back_2_flex": -0.15}, False)
@@ -311,15 +407,95 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     return m
 
 
+#: AZee sites of the bundled signer that are not on the skin: the wrist joint centres and
+#: the tongue tip (inside the closed mouth).
+_INTERIOR = ("TO", "WR_L", "WR_R")
+
+#: Outward skin normals at qpos0 (= in the body frame) of the midline sites and the right
+#: side's lateral sites (``{X}``), computed from the collision geometry by
+#: ``tools/build_signer.py`` (which checks them); the left side mirrors them.
+_NORMALS = {
+    "HEAD": (0.0, 0.0, 1.0),
+    "FH": (0.8902, 0.0, 0.4555),
+    "NO": (1.0, 0.0, -0.0),
+    "NSP": (0.9805, 0.0, -0.1967),
+    "MO": (0.8575, -0.0, -0.5144),
+    "CH": (0.5914, 0.0, -0.8063),
+    "BEB": (-1.0, 0.0, 0.0),
+    "NK": (0.9997, 0.0, 0.0235),
+    "ST": (0.9957, 0.0, 0.0925),
+    "AB": (0.9974, 0.0, 0.0719),
+    "ABST": (0.893, 0.0, 0.45),
+    "EB_{X}": (0.8602, -0.4917, 0.1356),
+    "EBi_{X}": (0.9578, -0.2612, 0.1198),
+    "EBe_{X}": (0.697, -0.7085, 0.1105),
+    "EYE_{X}": (1.0, 0.0, 0.0),
+    "TE_{X}": (0.405, -0.9102, 0.0866),
+    "CK_{X}": (0.6732, -0.7388, -0.0308),
+    "EAR_{X}": (0.0, -0.9999, 0.0101),
+    "LOBE_{X}": (0.1699, -0.9767, -0.1313),
+    "MO_{X}": (0.7853, -0.4031, -0.47),
+    "NO_{X}": (0.4091, -0.8069, -0.4261),
+    "NK_{X}": (0.0, -1.0, 0.0),
+    "ST_{X}": (0.8902, -0.4448, 0.0986),
+    "AB_{X}": (0.8858, -0.4576, 0.0772),
+    "ABST_{X}": (0.8019, -0.3554, 0.4803),
+    "SH_{X}": (0.0289, -0.1664, 0.9856),
+    "ARMpit_{X}": (0.0, 1.0, 0.0),
+    "ARM_{X}": (0.0, -1.0, 0.0),
+    "ARMsh_{X}": (0.0, -0.2425, 0.9701),
+    "EL_{X}": (0.0, 0.0, 1.0),
+    "ELi_{X}": (0.9678, 0.0, -0.2516),
+    "F_ARM_{X}": (0.0, -1.0, 0.0),
+    "F_ARMi_{X}": (0.0, 1.0, 0.0),
+    "WRt_{X}": (0.0, -1.0, -0.0),
+    "WRi_{X}": (0.1772, 0.9842, -0.0),
+    "PA_{X}": (0.0, 1.0, 0.0),
+    "H_BACK_{X}": (0.0, -1.0, 0.0),
+    "H_EDGE_{X}": (-1.0, 0.0, 0.0),
+    "viande_{X}": (0.0, 1.0, 0.0),
+}
+
+#: Digit sites' normals from the phalanx's bone axes: ``+1`` / ``-1`` times NRM (pad /
+#: back), or DIR (the tip).
+_DIGIT_NORMALS = {"KN": ("nrm", -1), "KNi": ("nrm", 1), "BACK": ("nrm", -1), "INT": ("nrm", 1),
+                  "PAD": ("nrm", 1), "NA": ("nrm", -1), "TIP": ("dir", 1)}  # fmt: skip
+
+
+def _bundled_normals(bones: Mapping[str, BoneMap]) -> dict[str, tuple[float, float, float]]:
+    out = {}
+    for key, v in _NORMALS.items():
+        if "{X}" not in key:
+            out[key] = _unit(v)
+            continue
+        for side in SIDES:
+            out[key.format(X=side)] = _unit(_mirror(v) if side == "L" else v)
+    for side in SIDES:
+        for letter, digit in DIGITS.items():
+            for stem in DIGIT_STEMS:
+                axis, sign = _DIGIT_NORMALS[stem]
+                b = bones[f"{digit}_{side}_3"]
+                out[f"{letter}_{stem}_{side}"] = _unit(sign * np.asarray(getattr(b, axis)))
+            for stem in PHALANX_STEMS:
+                axis, sign = _DIGIT_NORMALS[stem]
+                for n in PHALANGES:
+                    b = bones[f"{digit}_{side}_{n}"]
+                    out[f"{letter}_{stem}_{side}_{n}"] = _unit(sign * np.asarray(getattr(b, axis)))
+    return {name: out[name] for name in azee_site_names() if name in out}
+
+
 def _bundled_map() -> SignerMap:
     sites = {name: name for name in azee_site_names()}
     morphs = {k: Morph(_frozen(ch), sided) for k, (ch, sided) in _bundled_morphs().items()}
+    bones = _bundled_bones()
     return SignerMap(
         sites=_frozen(sites),
-        bones=_frozen(_bundled_bones()),
+        bones=_frozen(bones),
         loci=_frozen({name: name for name in LOCI}),
         morphs=_frozen(morphs),
         tracks=_frozen(_bundled_tracks()),
+        normals=_frozen(_bundled_normals(bones)),
+        interior=_INTERIOR,
     )
 
 

@@ -36,11 +36,14 @@ import mujoco
 import numpy as np
 
 from azee_mj import constraints as cn
-from azee_mj import ik
+from azee_mj import ik, mirror, reach
 from azee_mj import score as sc
-from azee_mj.motion import Key, Mode, Motion
+from azee_mj.diagnose import diagnose
+from azee_mj.kinematics import BodyAxis, SitePos
+from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
-from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.sites import DEFAULT_MAP, DIGITS, SignerMap
+from azee_mj.timing import check_fps, frame_count, frame_range
 
 __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "realize",
            "residual_summary", "score_traces"]
@@ -50,11 +53,39 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 # ---------------------------------------------------------------------------------------
 
 
+#: How nearly two skin surfaces a placement joins face each other [rad], by the hand part
+#: that touches: flat parts of the hand meet flat, a finger pad nearly so, a fingertip or a
+#: knuckle touches at an angle (a finger does not point straight into the face).
+FACING_TOL = {"PA": 5.0, "H_BACK": 5.0, "H_EDGE": 10.0, "viande": 20.0, "PAD": 30.0,
+              "TIP": 20.0, "NA": 45.0, "KN": 45.0, "KNi": 45.0, "BACK": 45.0, "INT": 45.0}
+#: How far from the signing space two joined hands may drift at the cost of one unit of
+#: naturalness [m].
+MEET_TOL = 0.1
+#: Two parts neither of which is a hand part (an elbow on the chest).
+FACING_TOL_BODY = 20.0
+
+
+def _facing_tol(a: str, b: str) -> float:
+    """The facing tolerance [rad] of AZee sites ``a`` and ``b`` brought together."""
+    def hand(site: str) -> float:
+        parts = site.split("_")
+        if len(parts) > 1 and parts[0] in DIGITS and parts[1] in FACING_TOL:
+            return FACING_TOL[parts[1]]  # a finger part: I_TIP_R, T_KN_R_1
+        return next((t for stem, t in FACING_TOL.items() if site.startswith(stem + "_")), 0.0)
+
+    return np.radians(max(hand(a), hand(b)) or FACING_TOL_BODY)
+
+
+#: Tracks that return to neutral when no block needs them.
+RELAXING = ("spine", "head")
+
 @dataclasses.dataclass(frozen=True)
 class ConstraintTrace:
     """The residual of one constraint over the frames of its block's interval.
 
-    ``values`` (T,) is NaN outside ``[start, end)``; unit is ``m`` or ``rad``.
+    Stored sparsely: ``active`` holds the residuals of frames ``first .. first +
+    len(active) - 1`` (those inside ``[start, end)``) of ``frames``; :attr:`values` is the
+    dense (frames,) view, NaN outside. Unit ``m`` or ``rad``.
     """
 
     block: str
@@ -64,12 +95,25 @@ class ConstraintTrace:
     unit: str
     start: float
     end: float
-    values: np.ndarray
+    first: int
+    active: np.ndarray
+    frames: int
+    #: Why a constraint its key posture could not meet misses ("" if it was met).
+    reason: str = ""
+
+    @property
+    def values(self) -> np.ndarray:
+        """(frames,) residuals, NaN outside the block's frames (built on demand)."""
+        out = np.full(self.frames, np.nan)
+        out[self.first : self.first + len(self.active)] = self.active
+        return out
 
     @property
     def worst(self) -> float:
-        v = self.values[~np.isnan(self.values)]
-        return float(v.max()) if v.size else 0.0
+        """The largest residual (NaN if a frame's residual is not finite: never ``ok``)."""
+        if not np.isfinite(self.active).all():
+            return float("nan")
+        return float(self.active.max()) if self.active.size else 0.0
 
     @property
     def ok(self) -> bool:
@@ -78,8 +122,9 @@ class ConstraintTrace:
     def describe(self) -> str:
         """``BLOCK constraint i (kind): worst X mm (tol Y mm)``, in mm or degrees."""
         k, u = (1000.0, "mm") if self.unit == "m" else (float(np.degrees(1.0)), "deg")
+        why = f": {self.reason}" if self.reason and not self.ok else ""
         return (f"{self.block} constraint {self.index} ({self.kind}): worst {self.worst * k:.2f}"
-                f" {u} (tol {self.tol * k:.2f} {u})")
+                f" {u} (tol {self.tol * k:.2f} {u}){why}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,7 +172,8 @@ class Rollout:
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
             "constraints": [
                 {"block": t.block, "index": t.index, "kind": t.kind, "unit": t.unit,
-                 "tol": float(t.tol), "worst": t.worst, "ok": bool(t.ok)}
+                 "tol": float(t.tol), "worst": t.worst if np.isfinite(t.worst) else None,
+                 "ok": bool(t.ok), "reason": t.reason}
                 for t in self.traces
             ],  # fmt: skip
             "all_within_tolerance": bool(all(t.ok for t in self.traces)),
@@ -164,11 +210,27 @@ class Realizer:
                  signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
         self.score, self.solver, self.fps, self.mode = score, solver, fps, mode
         self.sched = Schedule(score, solver, signer_map)
-        self.motion = Motion(self.sched, mode)
+        self.motion = Motion(self.sched, mode, fps)
         self.m, self.smap, self.comp = self.sched.m, self.sched.smap, self.sched.comp
         self.track_joints, self.track_dofs = self.sched.track_joints, self.sched.track_dofs
         self.home, self.blocks, self.by_path = self.sched.home, self.sched.blocks, self.sched.by_path
         self.n_key = 0
+        #: constraint label -> why its key posture misses it (see :mod:`azee_mj.diagnose`)
+        self.reasons: dict[str, str] = {}
+        self.arms = reach.arms_of(self.smap)
+        hands = {a: solver.body_id(a.hand) for a in self.arms}
+        self._hand_of = lambda site: next(
+            (a for a, h in hands.items()
+             if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), h)), None)
+        uppers = {solver.body_id(a.upper): int(self.m.body_parentid[solver.body_id(a.upper)])
+                  for a in self.arms}  # fmt: skip
+        self._limb_root = lambda site: next(
+            (root for up, root in uppers.items()
+             if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), up)), None)
+        self._azee_site = {model: azee for azee, model in self.smap.sites.items()}
+        ssp = self.smap.loci.get("ssp")
+        self._meet = ssp if ssp is not None and mujoco.mj_name2id(
+            self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
 
     @property
     def results(self) -> list[ik.IKResult]:
@@ -186,6 +248,12 @@ class Realizer:
         ev = self.sched.events()
         cstr = [(b, self.sched.block_constraints(b)) for b in self.blocks if b.kind is sc.BlockKind.CSTR]
         holds = [b for b in self.blocks if b.kind is sc.BlockKind.HOLD]
+        trills = [(b, dc.tracks) for b, cons in cstr for dc in cons
+                  if isinstance(dc.source, sc.Trill)]  # fmt: skip
+
+        def trill_tracks(t: float) -> list[set[str]]:
+            return [tr for b, tr in trills if b.start <= t < b.end]
+
         for t0, t1 in zip(ev[:-1], ev[1:]):
             items: list[Active] = []
             for b, cons in cstr:
@@ -203,6 +271,9 @@ class Realizer:
                         keys[t].append(Key(t0, t1, q, (), self.track_joints[t]))
                         held.add(t)
             items = [it for it in items if not it.driven.tracks <= held]
+            if self.mode is Mode.MULTITRACK:
+                busy = held.union(*(it.driven.tracks for it in items), *trill_tracks(t0))
+                self._relax(keys, state, busy, {it.driven.con for it in items}, t0, t1)
             if not items:
                 continue
             if self.mode is Mode.FLATTENED:
@@ -211,9 +282,11 @@ class Realizer:
                 groups = [driven | (set(self.track_joints) - {"face", "eyes"})]
             else:
                 groups = _components([it.driven.tracks for it in items])
-            # Hand shapes and face first: a placed fingertip depends on its hand's shape.
-            groups.sort(key=lambda g: any(it.driven.con is not None for it in items
-                                          if it.driven.tracks & g))
+            # Hands (their shapes and finger orientations) and the face first: a placed
+            # fingertip depends on its hand's shape. Then sorted by name (deterministic).
+            groups.sort(key=lambda g: (not all(t.startswith(("hand", "face", "eyes")) for t in g),
+                                       any(it.driven.con is not None for it in items
+                                           if it.driven.tracks & g), sorted(g)))
             before = state.copy()
             solved = []
             for g in groups:
@@ -228,11 +301,31 @@ class Realizer:
                 if retry[0].converged or _violation(retry[0]) < sum(_violation(r) for r, _, _ in solved):
                     groups, solved = [group], [retry]
             for group, (res, cons, free) in zip(groups, solved):
+                if not res.converged:
+                    problem = self.motion.problem(cons, free, before, t0, natural=False)
+                    for dg in diagnose(self.solver, problem, res, before, self._limb_root):
+                        self.reasons.setdefault(dg.label, dg.detail)
                 for t in group:
                     d = self.track_dofs[t]
                     state[d] = res.qpos[d]
+                    if keys[t] and keys[t][-1].start == t0:
+                        keys[t].pop()  # recruited after all: no return to neutral here
                     keys[t].append(Key(t0, t1, res.qpos.copy(), tuple(cons), free))
         return keys
+
+    def _relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0: float,
+               t1: float) -> None:  # fmt: skip
+        """The trunk and the head return to neutral over ``[t0, t1)`` when no block needs
+        them: none drives them, and none that they were recruited for (their last key's
+        constraints) is still ``active``."""
+        for t in RELAXING:
+            d = self.track_dofs.get(t)
+            if d is None or t in busy or not keys[t] or set(keys[t][-1].cons) & active:
+                continue
+            if np.allclose(keys[t][-1].q[d], self.home[d], atol=SAME_POSTURE):
+                continue
+            state[d] = self.home[d]
+            keys[t].append(Key(t0, t1, self.home.copy(), (), self.track_joints[t], relax=True))
 
     def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float):
         """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
@@ -254,12 +347,57 @@ class Realizer:
             return kept, cons, free
         q0 = state.copy()
         places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
+        # Also start each arm in its natural two-bone posture for its hand's target.
+        seeds = reach.arm_seeds(self.solver, self.arms, cons, free, q0, self._hand_of, self._meet)
         if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
-            q0 = self.motion.solve(places, free, q0, t0).qpos
+            q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
-        res = self.motion.solve(cons, free, q0, t0)
+        facing = self._facing(cons)
+        where = self._meeting_place(cons)
+        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)
         self.n_key += 1
-        return res, cons, free
+        if facing and not res.converged:
+            # Face to face is a preference below the score's constraints: without it?
+            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where)
+            self.n_key += 1
+            if plain.converged or _violation(plain) < _violation(res):
+                return plain, cons, free
+        return res, cons + facing, free
+
+    def _meeting_place(self, cons) -> tuple[cn.Place, ...]:
+        """Where two hands meet when nothing else places them: a preference (with the
+        naturalness, below the constraints) for the contact in the neutral signing space,
+        where signers join their hands, rather than low where holding them costs least."""
+        if self._meet is None:
+            return ()
+        placed = [c for c in cons if isinstance(c, cn.Place)]
+        joins = [c for c in placed if isinstance(c.target, SitePos) and self._hand_of(c.site)
+                 and self._hand_of(c.target.site) not in (None, self._hand_of(c.site))]  # fmt: skip
+        if len(joins) != 1 or len(placed) != 1:
+            return ()
+        return (cn.Place(joins[0].site, SitePos(self._meet), MEET_TOL, "meet"),)
+
+    def _facing(self, cons) -> list[cn.Orient]:
+        """For each placement of a skin site on another, the two surfaces face to face:
+        outward normals opposed (within ``FACING_TOL`` of the hand part), unless the score orients one of
+        the two bodies itself."""
+        oriented = {c.body for c in cons if isinstance(c, cn.Orient)}
+        out = []
+        for c in cons:
+            if not isinstance(c, cn.Place) or not isinstance(c.target, SitePos):
+                continue
+            a, b = self._azee_site.get(c.site), self._azee_site.get(c.target.site)
+            if a not in self.smap.normals or b not in self.smap.normals:
+                continue
+            ba, bb = (self.m.body(int(self.m.site_bodyid[self.solver.site_id(s)])).name
+                      for s in (c.site, c.target.site))  # fmt: skip
+            if ba in oriented or bb in oriented:
+                continue
+            tol = _facing_tol(a, b)
+            out.append(cn.Orient(ba, self.smap.normals[a], cn.Rel.OPP,
+                                 BodyAxis(bb, self.smap.normals[b]), tol,
+                                 f"{c.label}:facing"))  # fmt: skip
+        return out
 
     def _joint_targets(self, changes: dict[str, float], tol: float = 0.02):
         out = []
@@ -276,7 +414,7 @@ class Realizer:
 
     # -- pass 2: frames ---------------------------------------------------------------
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
-        T = int(np.floor(self.score.duration * self.fps + 1e-9)) + 1
+        T = frame_count(self.score.duration, self.fps)
         times = np.arange(T) / self.fps
         q = np.tile(self.home, (T, 1))
         moving = np.zeros((T, len(self.track_joints)), bool)
@@ -305,14 +443,16 @@ class Realizer:
                 ic = self.comp.constraint(c, f"{b.path}#{c.index}")
                 if ic is None:
                     continue
-                vals = np.full(len(times), np.nan)
-                for f in np.flatnonzero((times >= b.start - 1e-9) & (times < b.end - 1e-9)):
+                span = frame_range(b.start, b.end, self.fps, len(times))
+                vals = np.empty(len(span))
+                for k, f in enumerate(span):
                     d.qpos[:] = q[f]
                     mujoco.mj_kinematics(self.m, d)
-                    vals[f] = ic.residual(self.solver.kinematics())
+                    vals[k] = ic.residual(self.solver.kinematics())
                 unit = "m" if isinstance(ic, cn.Place) else "rad"
                 out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
-                                           unit, b.start, b.end, vals))  # fmt: skip
+                                           unit, b.start, b.end, span.start, vals,
+                                           len(times), self.reasons.get(ic.label, "")))  # fmt: skip
         return tuple(out)
 
 
@@ -366,20 +506,27 @@ def realize(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     mode = Mode(mode) if isinstance(mode, str) else mode
-    if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+    fps = check_fps(fps, "fps")
     smap = signer_map or DEFAULT_MAP
     solver = solver or make_solver(signer_map=smap)
-    r = Realizer(score, solver, fps, mode, smap)
+    # A left-handed score is realized as the mirror image of its right-handed mirror, so
+    # left- and right-handed signing are mirror images by construction.
+    flip = mirror.JointMirror.of(solver.model) if score.strong_side == "L" else None
+    r = Realizer(mirror.mirror_score(score) if flip else score, solver, fps, mode, smap)
     tick = progress or (lambda f: None)
     keys = r.key_postures()
     tick(0.4)
     q = r.frames(keys)
     tick(0.8)
     times = np.arange(q.shape[0]) / fps
+    own = Realizer(score, solver, fps, mode, smap) if flip else r
+    if flip:
+        own.reasons = {k: mirror.mirror_words(v) for k, v in r.reasons.items()}
     # Residuals are those of the postures the blocks ask for: a trill is added on top.
-    traces = r.traces(q, times)
+    traces = own.traces(flip(q) if flip else q, times)
     q = r.motion.trills(q, times)
+    if flip:
+        q = flip(q)
     site_names = tuple(smap.sites)
     sids = np.array([solver.site_id(s) for s in smap.sites.values()])
     d = solver.data
@@ -396,7 +543,7 @@ def realize(
         solve_time=sum(x.time for x in res), total_time=_time.perf_counter() - t_start,
         per_problem_iterations=np.array([x.iterations for x in res]),
     )  # fmt: skip
-    return Rollout(fps, mode, times, q, site_names, site_pos, r.schedule(), traces, stats)
+    return Rollout(fps, mode, times, q, site_names, site_pos, own.schedule(), traces, stats)
 
 
 def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,

@@ -42,6 +42,7 @@ import baselines  # noqa: E402
 import problems  # noqa: E402
 
 from azee_mj import ik  # noqa: E402
+from azee_mj.ergonomics import ergonomics  # noqa: E402
 from azee_mj.schedule import make_solver  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -109,7 +110,15 @@ def score(solver: ik.Solver, kf, q: np.ndarray, t: float, iters: int) -> dict:
         "max_range_overrun_deg": float(max(over.max(), 0.0) / DEG),
         "time_ms": t * 1e3,
         "iterations": int(iters),
+        **natural_metrics(solver, q),
     }
+
+
+def natural_metrics(solver: ik.Solver, q: np.ndarray) -> dict:
+    """Naturalness of a posture (azee_mj.ergonomics): trunk and head from upright, RULA."""
+    e = ergonomics(solver.model, q)
+    return {"trunk_deg": e.trunk_angle / DEG, "head_deg": e.head_angle / DEG,
+            "rula": int(e.rula.score)}  # fmt: skip
 
 
 def run_ours(solver, kfs, warm: bool):
@@ -161,6 +170,11 @@ def summarise(recs: list[dict]) -> dict:
         "penetrations": int(sum(r["penetration_mm"] > PEN_LIMIT * 1e3 for r in recs)),
         "max_penetration_mm": float(max(r["penetration_mm"] for r in recs)),
         "median_iterations": float(np.median(it)), "max_iterations": int(it.max()),
+        "median_trunk_deg": float(np.median([r["trunk_deg"] for r in recs])),
+        "worst_trunk_deg": float(max(r["trunk_deg"] for r in recs)),
+        "median_head_deg": float(np.median([r["head_deg"] for r in recs])),
+        "worst_head_deg": float(max(r["head_deg"] for r in recs)),
+        "rula_le_4": float(np.mean([r["rula"] <= 4 for r in recs])),
         "by_kind": by_kind,
     }  # fmt: skip
 
@@ -192,8 +206,9 @@ def table(summary: dict, ours_key="ours-warm") -> str:
     lines = [
         "| method | solved 1 mm / 1 deg | solved 1 cm / 5 deg | place mm median / worst "
         "| angle deg median / worst | ms median / p90 | range violations (max overrun deg) "
-        "| penetrations > 1 mm (max mm) | median time ratio to ours-warm | success diff (pp) |",
-        "|" + " --- |" * 10,
+        "| penetrations > 1 mm (max mm) | median time ratio to ours-warm | success diff (pp) "
+        "| trunk deg median / worst | head deg median / worst | RULA <= 4 |",
+        "|" + " --- |" * 13,
     ]
     for name, s in summary.items():
         r = ratios(s, ours)
@@ -205,7 +220,10 @@ def table(summary: dict, ours_key="ours-warm") -> str:
             f"| {s['median_ms']:.2f} / {s['p90_ms']:.2f} "
             f"| {s['range_violations']} ({s['max_range_overrun_deg']:.1f}) "
             f"| {s['penetrations']} ({s['max_penetration_mm']:.1f}) "
-            f"| {r['median_time_ratio']:.2f} | {r['success_diff_pp']:+.1f} |"
+            f"| {r['median_time_ratio']:.2f} | {r['success_diff_pp']:+.1f} "
+            f"| {s['median_trunk_deg']:.1f} / {s['worst_trunk_deg']:.1f} "
+            f"| {s['median_head_deg']:.1f} / {s['worst_head_deg']:.1f} "
+            f"| {100 * s['rula_le_4']:.0f} % |"
         )
     for label, n, total in REFERENCES:
         per = 1e3 * total / n

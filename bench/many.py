@@ -45,6 +45,7 @@ def one_run(paths: list[Path], workers: int, tmp: Path) -> tuple[float, float, f
     """Scores per second of realizing ``paths`` with ``workers`` processes, and the seconds
     of CPU and elapsed time the scores took inside the workers, summed."""
     out = tmp / f"out-{workers}"
+    out.mkdir()  # the output rule: an output's directory must exist
     t0 = time.perf_counter()
     outcomes = realize_many(plan(paths, out), workers=workers)
     dt = time.perf_counter() - t0

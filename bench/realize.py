@@ -25,6 +25,7 @@ import numpy as np  # noqa: E402
 
 from azee_mj import timeline  # noqa: E402
 from azee_mj.schedule import make_solver  # noqa: E402
+from azee_mj.ergonomics import ergonomics  # noqa: E402
 from azee_mj.score import load_score  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -62,7 +63,30 @@ def run(names, solver, repeats=1):
         "ik_problems": r.stats.problems, "key_problems": r.stats.key_problems,
         "iterations": r.stats.iterations, "not_converged": r.stats.not_converged,
         "constraints_ok": int(sum(bool(t.ok) for t in r.traces)), "constraints": len(r.traces),
+        **naturalness(r, solver),
     }
+
+
+def naturalness(r, solver) -> dict:
+    """Fastest joint [rad/s] and the worst trunk and head angles from upright [deg] over the
+    rollout (every 5th frame), by ``azee_mj.ergonomics``."""
+    speed = float(np.abs(np.diff(r.qpos, axis=0)).max() * r.fps) if len(r.time) > 1 else 0.0
+    e = [ergonomics(solver.model, q) for q in r.qpos[::5]]
+    return {"max_joint_speed": speed,
+            "worst_trunk_deg": float(np.degrees(max(x.trunk_angle for x in e))),
+            "worst_head_deg": float(np.degrees(max(x.head_angle for x in e)))}  # fmt: skip
+
+
+def mirror_error(names, solver) -> float:
+    """Worst site distance [m] between the left-handed sentence and the mirror of the
+    right-handed one."""
+    from azee_mj.mirror import mirror_name
+
+    s = sentence(names)
+    right = timeline.realize(load_score(s), fps=50, solver=solver)
+    left = timeline.realize(load_score({**s, "strong_side": "L"}), fps=50, solver=solver)
+    idx = [list(right.site_names).index(mirror_name(n)) for n in left.site_names]
+    return float(np.abs(right.site_pos[:, idx] * np.array([1.0, -1.0, 1.0]) - left.site_pos).max())
 
 
 def main():
@@ -78,12 +102,19 @@ def main():
         r = rows[-1]
         print(f"{n:2d} signs {r['duration_s']:5.2f} s {r['blocks']:3d} blocks: {r['realize_s']:6.3f} s"
               f" ({r['realtime_factor']:5.1f}x real time), {r['ik_problems']} IK problems,"
-              f" {r['constraints_ok']}/{r['constraints']} ok")
+              f" {r['constraints_ok']}/{r['constraints']} ok, fastest joint"
+              f" {r['max_joint_speed']:.1f} rad/s, trunk / head up to {r['worst_trunk_deg']:.1f} /"
+              f" {r['worst_head_deg']:.1f} deg")
     d = np.array([r["duration_s"] for r in rows])
     c = np.array([r["realize_s"] for r in rows])
     fit = np.polyfit(d, c, 1)
     resid = c - np.polyval(fit, d)
+    # pointing names the right and left loci (^Rssp, ^Lssp): not the same sign mirrored
+    mirrorable = [n for n in rows[-1]["signs"] if n != "pointing"]
+    mirror_mm = 1000.0 * mirror_error(mirrorable, solver)
+    print(f"{len(mirrorable)} signs left-handed vs the mirror of right-handed: {mirror_mm:.3f} mm")
     out = {
+        "left_handed_mirror_mm": mirror_mm,
         "machine": {"cpu": _cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
                     "mujoco": mujoco.__version__, "numpy": np.__version__},
         "rows": rows,

@@ -3,9 +3,8 @@
 
 Each must meet its contact within the default 1 mm and do it as a signer would: trunk within
 10 degrees of upright, head within 15 degrees (no contact here asks the head to move), both
-elbows below their shoulders (every hand here is below the eyes). Contacts the current
-solver fails are marked xfail with the numbers it gave (``bench/results/natural-previous.json``);
-remove the mark when a solver passes.
+elbows below their shoulders (every hand here is below the eyes). The previous solver failed
+five of the six (``bench/results/natural-previous.json``).
 """
 
 import numpy as np
@@ -36,22 +35,13 @@ def contact_score(site, at, strong, weak=None):
     }  # fmt: skip
 
 
-def failing(reason):
-    return pytest.mark.xfail(strict=False, reason=f"previous solver: {reason}")
-
-
 CASES = [
     pytest.param("@I_TIP(s)", "@CH", INDEX, None, id="index-tip-chin-R"),
-    pytest.param("@I_TIP(s)", "@MO", INDEX, None, id="index-tip-mouth-R",
-                 marks=failing("the head bows 47 deg to the fingertip")),
-    pytest.param("@PA(s)", "@CK(s)", FLAT, None, id="palm-cheek-R",
-                 marks=failing("misses by 2.9 mm")),
-    pytest.param("@PA(s)", "@PA(w)", FLAT, FLAT, id="palm-palm-R",
-                 marks=failing("misses by 24.9 mm (the thumbs meet first)")),
-    pytest.param("@PA(s)", "@ST", FLAT, None, id="palm-chest-R",
-                 marks=failing("misses by 8.8 mm")),
-    pytest.param("@T_TIP(s)", "@ST(s)", THUMB, None, id="thumb-tip-chest-R",
-                 marks=failing("the trunk folds 58 deg to the thumb")),
+    pytest.param("@I_TIP(s)", "@MO", INDEX, None, id="index-tip-mouth-R"),
+    pytest.param("@PA(s)", "@CK(s)", FLAT, None, id="palm-cheek-R"),
+    pytest.param("@PA(s)", "@PA(w)", FLAT, FLAT, id="palm-palm-R"),
+    pytest.param("@PA(s)", "@ST", FLAT, None, id="palm-chest-R"),
+    pytest.param("@T_TIP(s)", "@ST(s)", THUMB, None, id="thumb-tip-chest-R"),
 ]  # fmt: skip
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -221,6 +222,39 @@ def test_encoder_writes_every_frame_in_order_and_raises_writer_errors():
     with pytest.raises(OSError, match="disk full"), rd.Encoder(fail, (2, 2, 3), queue=2) as enc:
         for _ in range(20):
             enc.put(enc.buffer())
+
+    def broken_close():
+        raise BrokenPipeError("the encoder is gone")
+
+    # Stopped from outside (Ctrl-C, SIGTERM, a render error): that error wins over close's.
+    with pytest.raises(KeyboardInterrupt), rd.Encoder(written.append, (2, 2, 3),
+                                                      close=broken_close) as enc:  # fmt: skip
+        enc.put(enc.buffer())
+        raise KeyboardInterrupt
+
+
+def test_sigterm_while_encoding_an_mp4_exits_143_and_leaves_nothing(rollout, gl, tmp_path):
+    from azee_mj.rollout_io import save_rollout
+
+    src = tmp_path / "good.npz"
+    save_rollout(src, rollout)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "render", str(src), "-o",
+                          str(tmp_path / "o.mp4"), "--fps", "240"], env=env,
+                         stderr=subprocess.PIPE, text=True)  # fmt: skip
+    deadline = time.monotonic() + 120
+
+    def encoding() -> bool:  # the temporary video has data: frames are going through ffmpeg
+        tmp = [f for f in tmp_path.iterdir() if f.name.startswith(".o.mp4.")]
+        return any(os.path.getsize(f) > 0 for f in tmp if f.exists())
+
+    while not encoding() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert p.poll() is None, "rendering ended before it could be stopped"
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert (p.returncode, err) == (143, "azee-mj: terminated\n")
+    assert [f.name for f in tmp_path.iterdir()] == ["good.npz"]
 
 
 def test_mp4_frames_are_the_rendered_frames(clip, gl, tmp_path):

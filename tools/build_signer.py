@@ -81,8 +81,10 @@ PHALANX_RAD = {
     "little": (0.0078, 0.0069, 0.0061),
 }
 THUMB_RAD = (0.0115, 0.0095, 0.0085)
-#: Thumb CMC joint relative to the wrist (toward the thumb side, palmar, down).
-THUMB_CMC = (0.0200, 0.0100, -0.0220)
+#: Thumb CMC joint relative to the wrist (toward the thumb side, in the palm's mid-plane,
+#: down): the adducted thumb (``THUMB_DIR_R``) then clears the palm's radial edge by 2.8 mm
+#: from its MCP on, and its capsules are flush with the palm's face.
+THUMB_CMC = (0.0220, 0.0, -0.0180)
 PALM_HALF_THICK = 0.0140
 
 # World positions of the joint centres at qpos0 (signer frame: +x forward, +y left, +z up).
@@ -101,11 +103,17 @@ WRIST_R = ELBOW_R + [0.0, 0.0, -FOREARM]
 #: Head shapes (world, qpos0): cranium and mid-face ellipsoids (centre, semi-axes).
 CRANIUM = (np.array([-0.010, 0.0, 0.700]), np.array([0.097, 0.079, 0.098]))
 FACE = (np.array([0.030, 0.0, 0.650]), np.array([0.058, 0.060, 0.062]))
-CHIN = (np.array([0.056, 0.0, 0.598]), np.array([0.032, 0.050, 0.026]))
+CHIN = (np.array([0.056, 0.0, 0.598]), np.array([0.032, 0.038, 0.026]))
 CHEST = (np.array([-0.015, 0.0, 0.375]), np.array([0.100, 0.130, 0.165]))
 ABDOMEN = (np.array([-0.010, 0.0, 0.190]), np.array([0.095, 0.125, 0.115]))
 HIPS = (np.array([-0.020, 0.0, 0.030]), np.array([0.100, 0.145, 0.100]))
 NECK_RAD = 0.045
+#: Hair cap (collision too: the top and back of the head are hair), ears, nose base.
+HAIR = (np.array([-0.022, 0.0, 0.718]), np.array([0.098, 0.085, 0.090]))
+EAR_R_SHAPE = (np.array([-0.012, -0.079, 0.672]), np.array([0.013, 0.007, 0.027]))
+NOSE_BASE = (np.array([0.096, 0.0, 0.651]), np.array([0.010, 0.013, 0.008]))
+#: The eyeball's collision radius: the closed lid's (the visual eyeball is 12 mm).
+EYE_RAD = 0.0125
 
 THUMB_D = np.array(THUMB_DIR_R)
 THUMB_N = np.array(THUMB_NRM_R)
@@ -268,6 +276,12 @@ def col(**a):
     return dict(cls="collision", **a)
 
 
+def shell(**a):
+    """A collision geom that overlaps the body's massive geoms (hair, ears, lips, the
+    deltoid...): it shapes the skin but adds no mass (density 0)."""
+    return dict(cls="collision", density=0, **a)
+
+
 def vis(material, **a):
     return dict(cls="visual", material=material, **a)
 
@@ -294,10 +308,10 @@ def build_pelvis() -> Body:
 
     both_sides(legs, pelvis)
     # abdomen below the navel
-    pelvis.site("ABST", front(HIPS, 0.0, 0.075) + [0.002, 0, 0])
+    pelvis.site("ABST", front(HIPS, 0.0, 0.075))
 
     def sites(b):
-        b.site("ABST_{X}", front(HIPS, -0.07, 0.075) + [0.002, 0, 0])
+        b.site("ABST_{X}", front(HIPS, -0.07, 0.075))
 
     both_sides(sites, pelvis)
     return pelvis
@@ -310,10 +324,10 @@ def build_spine(pelvis: Body) -> tuple[Body, Body]:
     b1.geom(**ellipsoid(ABDOMEN, vis("shirt")))
     b1.geom(type="ellipsoid", pos=[-0.013, 0, 0.275], size=[0.096, 0.126, 0.085],
             **vis("shirt"))  # fmt: skip  (waist, blending abdomen and chest)
-    b1.site("AB", front(ABDOMEN, 0.0, 0.20) + [0.001, 0, 0])
+    b1.site("AB", front(ABDOMEN, 0.0, 0.20))
 
     def ab(b):
-        b.site("AB_{X}", front(ABDOMEN, -0.07, 0.20) + [0.001, 0, 0])
+        b.site("AB_{X}", front(ABDOMEN, -0.07, 0.20))
 
     both_sides(ab, b1)
 
@@ -323,10 +337,10 @@ def build_spine(pelvis: Body) -> tuple[Body, Body]:
     b2.geom(**ellipsoid(CHEST, vis("shirt")))
     b2.geom(type="capsule", fromto=[-0.04, 0, 0.50, -0.04, 0, 0.53], size=[0.05],
             **vis("shirt"))  # fmt: skip  (collar at the back of the neck)
-    b2.site("ST", front(CHEST, 0.0, 0.40) + [0.001, 0, 0])
+    b2.site("ST", front(CHEST, 0.0, 0.40))
 
     def st(b):
-        b.site("ST_{X}", front(CHEST, -0.07, 0.40) + [0.001, 0, 0])
+        b.site("ST_{X}", front(CHEST, -0.07, 0.40))
 
     both_sides(st, b2)
     # signing-space loci, carried by the chest so that they follow a leaning torso
@@ -342,10 +356,13 @@ def build_neck_head(b2: Body) -> Body:
     neck_ft = [-0.020, 0, 0.50, -0.022, 0, 0.585]
     neck.geom(type="capsule", fromto=neck_ft, size=[NECK_RAD], **col())
     neck.geom(type="capsule", fromto=neck_ft, size=[NECK_RAD + 0.001], **vis("skin"))
-    neck.site("NK", [-0.021 + NECK_RAD + 0.001, 0, 0.555])
+    nk_axis = np.array(neck_ft[:3]) + (0.555 - neck_ft[2]) / (neck_ft[5] - neck_ft[2]) * (
+        np.array(neck_ft[3:]) - neck_ft[:3])  # fmt: skip
+    nk_fwd = unit(np.cross([0, 1, 0], np.subtract(neck_ft[3:], neck_ft[:3])))
+    neck.site("NK", nk_axis + NECK_RAD * nk_fwd)
 
     def nk(b):
-        b.site("NK_{X}", [-0.021, -(NECK_RAD + 0.001), 0.555])
+        b.site("NK_{X}", nk_axis + [0, -NECK_RAD, 0])
 
     both_sides(nk, neck)
 
@@ -355,44 +372,48 @@ def build_neck_head(b2: Body) -> Body:
     head.geom(**ellipsoid(FACE, col()))
     nose_ft = [0.086, 0, 0.690, 0.100, 0, 0.656]
     head.geom(type="capsule", fromto=nose_ft, size=[0.008], **col())
+    head.geom(**ellipsoid(NOSE_BASE, shell()))
+    head.geom(**ellipsoid(HAIR, shell()))
     head.geom(**ellipsoid(CRANIUM, vis("skin")))
     head.geom(**ellipsoid(FACE, vis("skin")))
     head.geom(type="capsule", fromto=nose_ft, size=[0.008], **vis("skin"))
-    head.geom(type="ellipsoid", pos=[0.096, 0, 0.651], size=[0.010, 0.013, 0.008],
-              **vis("skin"))  # fmt: skip
+    head.geom(**ellipsoid(NOSE_BASE, vis("skin")))
     # hair cap: a little larger than the cranium, shifted up and back
-    head.geom(type="ellipsoid", pos=[-0.022, 0, 0.718], size=[0.098, 0.085, 0.090],
-              **vis("hair"))  # fmt: skip
+    head.geom(**ellipsoid(HAIR, vis("hair")))
 
-    nose_tip = np.array([0.108, 0.0, 0.650])
-    head.site("HEAD", surface(CRANIUM, [0, 0, 1]) + [0, 0, 0.009])  # on the hair
+    # every skin site lies on the collision surface (README.md, "Sites")
+    head.site("HEAD", surface(HAIR, [0, 0, 1]))  # on the hair
     head.site("FH", front(CRANIUM, 0.0, 0.745))
-    head.site("NO", nose_tip)
-    head.site("NSP", [0.092, 0.0, 0.637])
-    head.site("MO", [0.091, 0.0, 0.619])
-    head.site("BEB", surface(CRANIUM, [-1, 0, 0]) + [-0.009, 0, 0])  # on the hair
+    head.site("NO", np.array(nose_ft[3:]) + [0.008, 0, 0])  # front of the nose capsule's end
+    head.site("NSP", front(FACE, 0.0, 0.637))
+    # front of the upper lip, where it meets the lower one
+    head.site("MO", [0.085, 0.0, 0.624] + 0.0032 * unit([1.0, 0, -0.6]))
+    head.site("BEB", surface(HAIR, [-1, 0, 0]))  # on the hair
 
     def lateral(b):
         # ears
-        b.geom(type="ellipsoid", pos=[-0.012, -0.079, 0.672], size=[0.013, 0.007, 0.027],
-               **vis("skin"))  # fmt: skip
-        # upper lip (static); the lower lip is on the jaw, the corners on mouth_X
-        b.geom(type="capsule", fromto=[0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
-               size=[0.0032], **vis("lips"))  # fmt: skip
-        b.geom(type="capsule", fromto=[0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240],
-               size=[0.0032], **vis("lips"))  # fmt: skip
+        b.geom(**ellipsoid(EAR_R_SHAPE, shell()))
+        b.geom(**ellipsoid(EAR_R_SHAPE, vis("skin")))
+        # the eyeball (under the lid): the eye bodies carry the visual eye, the head its
+        # collision sphere (a sphere about the eye's centre does not change as it turns)
+        b.geom(type="sphere", pos=EYE_R, size=[EYE_RAD], **shell())
+        # upper lip (static, collision too); the lower lip is on the jaw, corners on mouth_X
+        for ft in ([0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
+                   [0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240]):
+            b.geom(type="capsule", fromto=ft, size=[0.0032], **shell())
+            b.geom(type="capsule", fromto=ft, size=[0.0032], **vis("lips"))
         # lower eyelid rim (static)
         b.geom(type="capsule", fromto=[0.074, -0.024, 0.6815, 0.074, -0.040, 0.6835],
                size=[0.0022], **vis("skin"))  # fmt: skip
         for y, z, stem in ((-0.033, 0.714, "EB"), (-0.017, 0.712, "EBi"), (-0.050, 0.712, "EBe")):
-            b.site(f"{stem}_{{X}}", front(CRANIUM, y, z) + [0.004, 0, 0])
-        b.site("EYE_{X}", EYE_R + [0.0145, 0, 0])
+            b.site(f"{stem}_{{X}}", front(CRANIUM, y, z))
+        b.site("EYE_{X}", EYE_R + [EYE_RAD, 0, 0])
         b.site("TE_{X}", surface(CRANIUM, unit([0.55, -0.82, 0.12])))
         b.site("CK_{X}", front(FACE, -0.045, 0.648))
-        b.site("EAR_{X}", [-0.012, -0.086, 0.676])
-        b.site("LOBE_{X}", [-0.006, -0.083, 0.648])
-        b.site("MO_{X}", [0.0745, -0.0245, 0.6195])
-        b.site("NO_{X}", [0.097, -0.014, 0.648])
+        b.site("EAR_{X}", surface(EAR_R_SHAPE, [0, -1, 0.15]))
+        b.site("LOBE_{X}", surface(EAR_R_SHAPE, [0.3, -0.5, -1.0]))
+        b.site("MO_{X}", front(FACE, -0.0245, 0.6195))
+        b.site("NO_{X}", surface(NOSE_BASE, [0.3, -1.0, -0.2]))
 
     both_sides(lateral, head)
 
@@ -404,11 +425,11 @@ def build_neck_head(b2: Body) -> Body:
     # the jaw's sides and underside (visual): fills the lower face between chin and ears
     jaw.geom(type="ellipsoid", pos=[0.026, 0, 0.619], size=[0.050, 0.060, 0.028], **vis("skin"))
 
-    def jaw_lat(b):
-        b.geom(type="capsule", fromto=[0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
-               size=[0.0036], **vis("lips"))  # fmt: skip
-        b.geom(type="capsule", fromto=[0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135],
-               size=[0.0036], **vis("lips"))  # fmt: skip
+    def jaw_lat(b):  # lower lip (collision too)
+        for ft in ([0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
+                   [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135]):
+            b.geom(type="capsule", fromto=ft, size=[0.0036], **shell())
+            b.geom(type="capsule", fromto=ft, size=[0.0036], **vis("lips"))
 
     both_sides(jaw_lat, jaw)
     jaw.site("CH", surface(CHIN, unit([1.0, 0, -0.9])))
@@ -562,10 +583,15 @@ def build_arm() -> Body:
     ]
     clav_end = np.array([-0.002, -0.150, 0.492])
     clav.geom(type="capsule", fromto=np.r_[CLAV_R, clav_end], size=[0.018], **col())
-    # shoulder slope (trapezius) under the shirt
-    clav.geom(type="capsule", fromto=[-0.028, -0.035, 0.515, -0.008, -0.150, 0.495],
-              size=[0.032], **vis("shirt"))  # fmt: skip
-    clav.site("SH_{X}", [-0.005, -0.158, 0.522])
+    # shoulder slope (trapezius) under the shirt; a sphere inscribed in its outer end (over
+    # the acromion, clear of the neck at any elevation) collides, and SH is on its top
+    trap = np.array([-0.028, -0.035, 0.515, -0.008, -0.150, 0.495])
+    clav.geom(type="capsule", fromto=trap, size=[0.032], **vis("shirt"))
+    axis = unit(trap[3:] - trap[:3])
+    acromion = trap[:3] + (0.140 - 0.035) / (0.150 - 0.035) * (trap[3:] - trap[:3])
+    clav.geom(type="sphere", pos=acromion, size=[0.032], **shell())
+    up = np.array([0.0, 0.0, 1.0])
+    clav.site("SH_{X}", acromion + 0.032 * unit(up - np.dot(up, axis) * axis))
 
     arm = clav.add(Body("arm_{X}", ARM_R, comment="upper arm: shoulder joint centre"))
     arm.joints = [
@@ -576,11 +602,15 @@ def build_arm() -> Body:
     arm_ft = np.r_[ARM_R + [0, 0, -0.005], ELBOW_R + [0, 0, 0.030]]
     arm.geom(type="capsule", fromto=arm_ft, size=[0.040], **col())
     arm.geom(type="capsule", fromto=arm_ft, size=[0.041], **vis("shirt"))
-    arm.geom(type="sphere", pos=ARM_R + [-0.002, -0.004, 0.002], size=[0.046], **vis("shirt"))
-    arm.site("ARMsh_{X}", ARM_R + [0.0, -0.012, 0.045])
-    arm.site("ARM_{X}", ARM_R + [0.0, -0.042, -0.15])
-    arm.site("ARMpit_{X}", ARM_R + [-0.005, 0.040, -0.060])
-    arm.site("ELi_{X}", ELBOW_R + [0.042, 0.0, 0.010])
+    # the deltoid's roundness over the shoulder joint (collision: ARMsh is on it)
+    deltoid = ARM_R + [-0.002, -0.004, 0.002]
+    arm.geom(type="sphere", pos=deltoid, size=[0.045], **shell())
+    arm.geom(type="sphere", pos=deltoid, size=[0.046], **vis("shirt"))
+    arm.site("ARMsh_{X}", deltoid + 0.045 * unit([0.0, -0.25, 1.0]))
+    arm.site("ARM_{X}", ARM_R + [0.0, -0.040, -0.15])
+    arm.site("ARMpit_{X}", ARM_R + [0.0, 0.040, -0.060])
+    # front of the elbow, on the end of the upper arm's capsule (its axis ends 30 mm above)
+    arm.site("ELi_{X}", ELBOW_R + [0, 0, 0.030] + 0.040 * unit([1.0, 0, -0.26]))
 
     farm = arm.add(Body("f_arm_{X}", ELBOW_R, comment="forearm: elbow joint centre"))
     farm.joints = [
@@ -595,12 +625,19 @@ def build_arm() -> Body:
     farm.geom(type="capsule", fromto=fa2, size=[0.026], **vis("shirt"))
     farm.geom(type="cylinder", fromto=np.r_[WRIST_R + [0, 0, 0.028], WRIST_R + [0, 0, 0.04]],
               size=[0.0272], **vis("cuff"))  # fmt: skip
-    farm.site("EL_{X}", ELBOW_R + [-0.036, 0.0, 0.012])
-    farm.site("F_ARM_{X}", ELBOW_R + [0.0, -0.0295, -0.11])
-    farm.site("F_ARMi_{X}", ELBOW_R + [0.0, 0.0295, -0.11])
+    # olecranon: a sphere on the forearm, posterior to the elbow centre; EL is its proximal
+    # apex, the elbow's lowest point with the forearm vertical (an elbow resting on a hand);
+    # with the arm straight it sits in the upper arm's end, as in the olecranon fossa
+    olecranon = ELBOW_R + [-0.022, 0.0, 0.006]
+    farm.geom(type="sphere", pos=olecranon, size=[0.016], **shell())
+    farm.geom(type="sphere", pos=olecranon, size=[0.017], **vis("shirt"))
+    farm.site("EL_{X}", olecranon + [0.0, 0.0, 0.016])
+    farm.site("F_ARM_{X}", ELBOW_R + [0.0, -0.030, -0.11])
+    farm.site("F_ARMi_{X}", ELBOW_R + [0.0, 0.030, -0.11])
     farm.site("WR_{X}", WRIST_R)
-    farm.site("WRt_{X}", WRIST_R + [0.0, -0.0225, 0.010])
-    farm.site("WRi_{X}", WRIST_R + [0.004, 0.0225, 0.010])
+    # back of the wrist and pulse side: where a watch sits, on the forearm capsule's end
+    farm.site("WRt_{X}", WRIST_R + [0.0, 0.0, 0.026] + 0.025 * unit([0.0, -1.0, 0.0]))
+    farm.site("WRi_{X}", WRIST_R + [0.0, 0.0, 0.026] + 0.025 * unit([0.18, 1.0, 0.0]))
 
     palm = farm.add(Body("palm_{X}", WRIST_R, comment="hand: wrist joint centre"))
     palm.joints = [
@@ -615,17 +652,19 @@ def build_arm() -> Body:
     palm.geom(type="box", pos=box_pos, size=box_size, **col())
     palm.geom(type="box", pos=box_pos, size=box_size, **vis("skin"))
     # wrist, thenar and hypothenar eminences (visual)
-    palm.geom(type="ellipsoid", pos=WRIST_R + [0.0, 0.0, 0.002], size=[0.027, 0.0145, 0.016],
-              **vis("skin"))  # fmt: skip
-    palm.geom(type="ellipsoid", pos=WRIST_R + [0.022, 0.009, -0.036], size=[0.016, 0.013, 0.026],
-              **vis("skin"))  # fmt: skip
-    palm.geom(type="ellipsoid", pos=WRIST_R + [-0.028, 0.006, -0.040],
-              size=[0.012, 0.011, 0.026], **vis("skin"))  # fmt: skip
+    # (no deeper than the palm's box: the palm's face is flat, so that it can lie on a palm,
+    # the back of a hand, the chest or a cheek)
+    palm.geom(type="ellipsoid", pos=WRIST_R + [0.0, 0.0, 0.002],
+              size=[0.027, PALM_HALF_THICK, 0.016], **vis("skin"))  # fmt: skip
+    palm.geom(type="ellipsoid", pos=WRIST_R + [0.020, 0.001, -0.036],
+              size=[0.016, PALM_HALF_THICK - 0.001, 0.026], **vis("skin"))  # fmt: skip
+    palm.geom(type="ellipsoid", pos=WRIST_R + [-0.030, 0.002, -0.040],
+              size=[0.012, PALM_HALF_THICK - 0.002, 0.026], **vis("skin"))  # fmt: skip
     zc = -0.045
     palm.site("PA_{X}", WRIST_R + [0.0, PALM_HALF_THICK, zc])
     palm.site("H_BACK_{X}", WRIST_R + [0.0, -PALM_HALF_THICK, zc])
     palm.site("H_EDGE_{X}", WRIST_R + [x_lo, 0.0, -0.050])
-    palm.site("viande_{X}", WRIST_R + [0.020, 0.018, -0.034])
+    palm.site("viande_{X}", WRIST_R + [0.020, PALM_HALF_THICK, -0.034])
 
     palm.add(build_thumb(WRIST_R))
     for f in ("index", "middle", "ring", "little"):
@@ -843,12 +882,44 @@ def write(tree: ET.ElementTree, path: Path, header: str) -> None:
     path.write_text(f"<!--{header}-->\n{text}\n")
 
 
+def check_skin(path: Path) -> list[str]:
+    """Problems with the catalogue's surface sites on the written model: each must lie on
+    its body's collision surface (within 0.01 mm) with the catalogue's outward normal
+    (within 0.1 degree). Prints the normals table of ``azee_mj/sites.py`` when they differ."""
+    import mujoco
+
+    from azee_mj.sites import DEFAULT_MAP
+    from azee_mj.surface import skin_distance
+
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    problems, table = [], []
+    for name, normal in DEFAULT_MAP.normals.items():
+        s = m.site(DEFAULT_MAP.sites[name])
+        dist, n, _ = skin_distance(m, d, s.bodyid[0], d.site_xpos[s.id])
+        local = d.xmat[s.bodyid[0]].reshape(3, 3).T @ n
+        if abs(dist) > 1e-5:
+            problems.append(f"{name}: {dist * 1000:.3f} mm off its body's collision surface")
+        if np.degrees(np.arccos(np.clip(local @ normal, -1, 1))) > 0.1:
+            problems.append(f"{name}: catalogue normal {normal}, surface normal {local.round(4)}")
+        if name.endswith("_R") or "_" not in name:
+            table.append(f'    "{name}": {tuple(round(float(x), 4) for x in local)},')
+    if any("normal" in p for p in problems):
+        print("surface normals (sites.py _NORMALS, lateral sites written with {X}):")
+        print("\n".join(table))
+    return problems
+
+
 def main() -> None:
     root = build_model()
     write(signer_xml(root), OUT_DIR / "signer.xml", HEADER)
     write(scene_xml(), OUT_DIR / "scene.xml",
           "\n  Generated by tools/build_signer.py: the signer on a floor, lights, cameras.\n")
     print(f"wrote {OUT_DIR / 'signer.xml'} and {OUT_DIR / 'scene.xml'}")
+    problems = check_skin(OUT_DIR / "signer.xml")
+    if problems:
+        sys.exit("surface sites:\n  " + "\n  ".join(problems))
 
 
 if __name__ == "__main__":

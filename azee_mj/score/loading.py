@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from azee_mj.errors import ScoreError
+from azee_mj.errors import ScoreError, shorten
 from azee_mj.score.records import (
     CONSTRAINT_TYPES,
     DEFAULT_TOL,
@@ -56,7 +56,10 @@ from azee_mj.score.records import (
 )
 from azee_mj.score.references import References
 from azee_mj.score.validation import (
+    MAX_DEPTH,
+    MAX_NUMBER,
     Loc,
+    check_depth,
     check_keys,
     got,
     is_number,
@@ -70,6 +73,7 @@ from azee_mj.score.validation import (
     xyz,
 )
 from azee_mj.sites import DEFAULT_MAP, SignerMap, resolve_side, suggest
+from azee_mj.timing import MAX_DURATION, exact_time
 
 
 def load_score(
@@ -111,8 +115,23 @@ def _read_json(path: Path) -> Any:
     def bad_constant(name: str) -> Any:
         raise _BadConstant(name)
 
+    def parse_int(s: str) -> int:
+        if len(s) > 16:  # beyond MAX_NUMBER; int() of thousands of digits is refused anyway
+            raise _BigNumber(s)
+        return int(s)
+
     try:
-        return json.loads(text, object_pairs_hook=pairs, parse_constant=bad_constant)
+        return json.loads(text, object_pairs_hook=pairs, parse_constant=bad_constant,
+                          parse_int=parse_int)  # fmt: skip
+    except RecursionError:
+        raise ScoreError(f"{path}: invalid score: nested deeper than {MAX_DEPTH} levels of "
+                         "objects and arrays") from None
+    except _BigNumber as e:
+        raise ScoreError(
+            f"{path}: invalid score: the integer {shorten(e.args[0], 20)} has "
+            f"{len(e.args[0].lstrip('-'))} digits; numbers in a score lie within "
+            f"-{MAX_NUMBER:g} to {MAX_NUMBER:g}"
+        ) from None
     except json.JSONDecodeError as e:
         raise ScoreError(
             f"{path}: line {e.lineno} column {e.colno}: invalid JSON: {e.msg}"
@@ -133,6 +152,10 @@ class _DuplicateKey(Exception):
 
 
 class _BadConstant(Exception):
+    pass
+
+
+class _BigNumber(Exception):
     pass
 
 
@@ -208,6 +231,7 @@ class _Loader:
         loc = Loc("")
         if not isinstance(data, Mapping):
             raise loc.fail(f"expected a JSON object at the top level, got {got(data)}")
+        check_depth(data)
         annotations = check_keys(loc, data, _TOP_REQUIRED, ("strong_side",), "", _TOP_KEYS)
         fmt = data["format"]
         if fmt != FORMAT:
@@ -243,6 +267,7 @@ class _Loader:
         parent_path: str,
         parent_abs: float,
         parent_dur: float | None,
+        parent_abs_end: float | None = None,
     ) -> Block:
         """Parse one block. ``pre`` locates it before its name is known; ``parent_dur`` is
         None for the root."""
@@ -288,7 +313,11 @@ class _Loader:
                 field="end",
             )
         if parent_dur is None:
-            abs_start, abs_end = 0.0, end - start
+            abs_start, abs_end = 0.0, exact_time(end - start)
+            if abs_end > MAX_DURATION:
+                raise loc.fail(f"the score lasts {num(end - start)} s",
+                               f"the longest score is {MAX_DURATION:g} s (1 hour)",
+                               field="end")  # fmt: skip
         else:
             inside = (
                 "a child's times are relative to its parent's start and lie within "
@@ -306,10 +335,18 @@ class _Loader:
                     inside,
                     field="end",
                 )
-            abs_start, abs_end = parent_abs + start, parent_abs + end
+            # Absolute times are made here, once, on the microsecond grid (azee_mj.timing),
+            # and kept inside the parent's.
+            lo, hi = parent_abs, parent_abs_end if parent_abs_end is not None else math.inf
+            abs_start = min(max(exact_time(parent_abs + start), lo), hi)
+            abs_end = min(max(exact_time(parent_abs + end), lo), hi)
+        if abs_end <= abs_start:
+            raise loc.fail(f"lasts {num(end - start)} s", "a block lasts at least 1e-06 s "
+                           "(times are resolved to the microsecond)", field="end")  # fmt: skip
         fields: dict[str, Any] = {}
         if kind is BlockKind.SYNC:
-            fields["children"] = self.children(loc, obj["children"], abs_start, end - start)
+            fields["children"] = self.children(loc, obj["children"], abs_start, end - start,
+                                               abs_end)  # fmt: skip
         elif kind is BlockKind.CSTR:
             fields["constraints"] = self.constraints(loc, obj["constraints"])
         elif kind is BlockKind.HOLD:
@@ -328,13 +365,15 @@ class _Loader:
             **fields,
         )
 
-    def children(self, loc: Loc, items: Any, abs_start: float, dur: float) -> tuple[Block, ...]:
+    def children(self, loc: Loc, items: Any, abs_start: float, dur: float,
+                 abs_end: float) -> tuple[Block, ...]:  # fmt: skip
         if not isinstance(items, (list, tuple)):
             raise loc.fail(f"expected a list of blocks, got {got(items)}", field="children")
         blocks: list[Block] = []
         seen: dict[str, int] = {}
         for i, item in enumerate(items, 1):
-            child = self.block(item, Loc(loc.path, f"child {i}"), loc.path, abs_start, dur)
+            child = self.block(item, Loc(loc.path, f"child {i}"), loc.path, abs_start, dur,
+                               abs_end)  # fmt: skip
             if child.name in seen:
                 raise Loc(loc.path, f"child {i}").fail(
                     f"duplicate name '{child.name}' (child {seen[child.name]} has it too)",

@@ -9,6 +9,7 @@ phalanx stems a side and a phalanx number), so one resolver reads both from a ta
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import re
 from collections.abc import Mapping
 from typing import Any
@@ -135,9 +136,15 @@ class References:
                            field=field)  # fmt: skip
         name = stem + (f"_{side}" if side else "") + (f"_{n}" if n else "")
         if name not in names:
-            hint = suggest(name, list(names))
-            valid = f"{hint[2:]} {_SITES_HINT}" if hint else "azee-mj sites lists all valid names"
-            raise loc.fail(f"unknown {kind.noun} '{name}'", valid, field=field)
+            # Quote and suggest as written: '@I_TPI(s)' -> did you mean '@I_TIP(s)'?
+            stems = sorted(kind.midline | kind.sided | kind.phalanx)
+            match = difflib.get_close_matches(stem, stems, n=1, cutoff=0.6)
+            if match:
+                args = "" if match[0] in kind.midline else text[1 + len(stem):]
+                valid = f"did you mean '{sg}{match[0]}{args}'? {_SITES_HINT}"
+            else:
+                valid = "azee-mj sites lists all valid names"
+            raise loc.fail(f"unknown {kind.noun} '{text}'", valid, field=field)
         return name
 
     def site(self, loc: Loc, field: str, text: str) -> SiteRef:

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from azee_mj.errors import ScoreError
+from azee_mj.errors import ScoreError, shorten, tidy
 from azee_mj.score.expressions import depends_on_body
 from azee_mj.score.records import (
     ZERO_NORM,
@@ -38,6 +38,10 @@ from azee_mj.sites import suggest
 
 #: Lists of valid names longer than this are abbreviated in messages.
 MAX_LISTED = 8
+#: Largest magnitude of any number in a score (times, metres, weights, counts).
+MAX_NUMBER = 1e6
+#: Deepest nesting of JSON objects and arrays in a score (about 48 nested blocks).
+MAX_DEPTH = 100
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,14 +58,15 @@ class Loc:
     ) -> ScoreError:
         """The error; ``field`` is named in the message unless ``show_field`` is false (the
         message then names it itself) or it is one of ``unnamed``."""
-        parts = [self.path or "score", self.where]
+        path = ".".join(shorten(p) for p in self.path.split(".")) if self.path else "score"
+        parts = [path, self.where]
         if field and show_field and field not in self.unnamed:
             parts.append(f"field '{field}'")
         parts.append(what)
         message = ": ".join(p for p in parts if p)
         if valid:
             message += "; " + valid
-        return ScoreError(message, path=self.path, field=field)
+        return ScoreError(tidy(message), path=self.path, field=field)
 
 
 def listing(names: Any, quote: bool = False) -> str:
@@ -74,10 +79,12 @@ def listing(names: Any, quote: bool = False) -> str:
 
 def got(value: Any) -> str:
     """A value as the user wrote it (JSON), shortened."""
+    if isinstance(value, int) and value.bit_length() > 64:
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
     try:
         text = json.dumps(value, ensure_ascii=False)
-    except (TypeError, ValueError):
-        text = repr(value)
+    except (TypeError, ValueError, RecursionError):
+        text = f"a {type(value).__name__}"
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -139,8 +146,11 @@ def number(loc: Loc, field: str, v: Any) -> float:
     """A finite JSON number."""
     if not is_number(v):
         raise loc.fail(f"expected a number, got {got(v)}", field=field)
-    if not math.isfinite(v):
+    if isinstance(v, float) and not math.isfinite(v):
         raise loc.fail(f"expected a finite number, got {got(v)}", field=field)
+    if abs(v) > MAX_NUMBER:
+        raise loc.fail(f"{got(v)} is out of range", f"numbers in a score lie within "
+                       f"-{MAX_NUMBER:g} to {MAX_NUMBER:g}", field=field)  # fmt: skip
     return float(v)
 
 
@@ -176,8 +186,11 @@ def xyz(loc: Loc, field: str, v: list[Any] | tuple[Any, ...]) -> tuple[float, fl
     """Three finite numbers."""
     if len(v) != 3 or not all(is_number(x) for x in v):
         raise loc.fail(f"expected 3 numbers [x, y, z], got {got(v)}", field=field)
-    if not all(math.isfinite(x) for x in v):
+    if not all(isinstance(x, int) or math.isfinite(x) for x in v):
         raise loc.fail(f"expected finite numbers, got {got(v)}", field=field)
+    if any(abs(x) > MAX_NUMBER for x in v):
+        raise loc.fail(f"{got(v)} is out of range", f"numbers in a score lie within "
+                       f"-{MAX_NUMBER:g} to {MAX_NUMBER:g}", field=field)  # fmt: skip
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
@@ -215,3 +228,21 @@ def _constant(e: PointExpr | VectorExpr) -> np.ndarray:
     v = _constant(e.v)  # VUnit
     n = float(np.linalg.norm(v))
     return v / n if n > 0.0 else np.zeros(3)
+
+
+def check_depth(data: Any, limit: int = MAX_DEPTH) -> None:
+    """Reject JSON nested deeper than ``limit`` objects and arrays (checked without
+    recursion, before anything recursive reads it)."""
+    stack = [(data, 1)]
+    while stack:
+        v, depth = stack.pop()
+        if isinstance(v, Mapping):
+            children = v.values()
+        elif isinstance(v, (list, tuple)):
+            children = v
+        else:
+            continue
+        if depth > limit:
+            raise Loc("").fail(f"the score is nested deeper than {limit} levels of objects and "
+                               "arrays", f"the deepest nesting allowed is {limit}")  # fmt: skip
+        stack.extend((c, depth + 1) for c in children)

@@ -1,0 +1,147 @@
+"""Why a constraint was not met: out of reach, in conflict, blocked by a collision, or
+stopped by a joint limit.
+
+:func:`diagnose` examines an unconverged :class:`~azee_mj.ik.IKResult` and gives one reason
+per constraint that misses, tried in this order:
+
+1. **out of reach**: a placement whose target lies farther from the root of its limb (a
+   clavicle for a hand) than the limb can stretch (the sum of its segments), by how much;
+2. **conflict**: this one alone can be met, but not together with one other named one;
+3. **blocked by a collision**: the problem is met with self-collision switched off; the
+   two body parts closest to each other at the result are named;
+4. **stopped by a joint limit**: a free joint sits at a limit and moving it past the limit
+   would reduce the residual; the joint that would help most is named;
+5. otherwise a local minimum of the solver.
+
+Units: metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import mujoco
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+
+
+@dataclasses.dataclass(frozen=True)
+class Diagnosis:
+    """Why constraint ``label`` misses: ``kind`` is ``reach``, ``conflict``, ``collision``,
+    ``limit`` or ``minimum``; ``detail`` says it in words."""
+
+    label: str
+    kind: str
+    detail: str
+
+
+def diagnose(solver: ik.Solver, problem: ik.IKProblem, result: ik.IKResult,
+             q0: np.ndarray, limb_root=None) -> tuple[Diagnosis, ...]:  # fmt: skip
+    """A :class:`Diagnosis` for each hard constraint of ``problem`` that ``result`` (solved
+    from ``q0``) misses. ``limb_root(site)`` is the body where the limb carrying a model site
+    starts (a clavicle for a hand site), or None: reach is measured from there."""
+    out = []
+    missed = [(c, r) for c, r in zip(problem.constraints, result.residuals)
+              if not c.soft and not r.ok]  # fmt: skip
+    for c, r in missed:
+        d = (_reach(solver, c, result.qpos, limb_root) or _conflict(solver, problem, c, q0)
+             or _collision(solver, problem, c, result.qpos) or _limit(solver, problem, c, result.qpos))
+        out.append(d or Diagnosis(c.label, "minimum", "a local minimum of the solver (no limit, "
+                                  "reach or collision explains it)"))  # fmt: skip
+    return tuple(out)
+
+
+def _name(m: mujoco.MjModel, obj, i: int) -> str:
+    return mujoco.mj_id2name(m, obj, int(i)) or str(i)
+
+
+def _reach(solver, c, q, limb_root) -> Diagnosis | None:
+    if not isinstance(c, cn.Place) or limb_root is None or (root := limb_root(c.site)) is None:
+        return None
+    m, d = solver.model, solver.data
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    sid = solver.site_id(c.site)
+    chain, b = [], int(m.site_bodyid[sid])
+    while b > 0 and b != root:
+        chain.append(b)
+        b = int(m.body_parentid[b])
+    if b != root:
+        return None
+    # the limb stretched straight: from its root joint through each joint to the site
+    points = [d.xpos[x] for x in [root, *reversed(chain)]] + [d.site_xpos[sid]]
+    length = sum(float(np.linalg.norm(y - x)) for x, y in itertools.pairwise(points))
+    target = solver.kinematics().value(c.target)
+    dist = float(np.linalg.norm(target - d.xpos[root]))
+    if dist <= length:
+        return None
+    return Diagnosis(c.label, "reach", f"out of reach by {(dist - length) * 1000:.0f} mm (the "
+                     f"target is {dist * 1000:.0f} mm from {_name(m, mujoco.mjtObj.mjOBJ_BODY, root)}, "
+                     f"the limb reaches {length * 1000:.0f} mm)")  # fmt: skip
+
+
+def _conflict(solver, problem, c, q0) -> Diagnosis | None:
+    """``c`` alone is met, and met with each other constraint but one."""
+    def met_with(extra) -> bool:
+        keep = tuple(x for x in problem.constraints if x is c or x in extra or x.soft
+                     or isinstance(x, cn.JointTarget))  # fmt: skip
+        res = solver.solve(dataclasses.replace(problem, constraints=keep, natural=False), q0)
+        return res.residuals[keep.index(c)].ok
+
+    block = c.label.rsplit("#", 1)[0]
+    others = sorted((o for o in problem.constraints if o is not c and not o.soft
+                     and not isinstance(o, cn.JointTarget)),
+                    key=lambda o: o.label.rsplit("#", 1)[0] != block)  # its own block first
+    if not others or not met_with(()):
+        return None
+    for o in others:
+        if not met_with((o,)):
+            return Diagnosis(c.label, "conflict", f"conflicts with {o.label}: each can be met "
+                             "without the other")  # fmt: skip
+    return None
+
+
+def _collision(solver, problem, c, q) -> Diagnosis | None:
+    res = solver.solve(dataclasses.replace(problem, collide=False, natural=False), q)
+    if not res.residuals[problem.constraints.index(c)].ok:
+        return None
+    m, d = solver.model, solver.data
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_collision(m, d)
+    if not d.ncon:
+        return Diagnosis(c.label, "collision", "blocked by self-collision")
+    i = int(np.argmin(d.contact.dist[: d.ncon]))
+    g = d.contact.geom[i]
+    a, b = (_name(m, mujoco.mjtObj.mjOBJ_BODY, m.geom_bodyid[x]) for x in g)
+    return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b}")
+
+
+def _limit(solver, problem, c, q) -> Diagnosis | None:
+    m, d = solver.model, solver.data
+    plan = solver.plan(problem)
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    r, J = plan.rows()
+    k = problem.constraints.index(c)
+    blk = plan.items[k]
+    grad = J[blk.start:blk.stop].T @ r[blk.start:blk.stop]  # (nv,) d(|r|^2 / 2)/dq
+    best = None
+    for dof in plan.free:
+        lo, hi = solver.lower[dof], solver.upper[dof]
+        at_lo, at_hi = q[dof] <= lo + 1e-6, q[dof] >= hi - 1e-6
+        # moving past the limit (down at lo, up at hi) would lower the residual
+        gain = grad[dof] if at_lo else -grad[dof] if at_hi else 0.0
+        if gain > 1e-9 and (best is None or gain > best[0]):
+            best = (gain, dof, "lower" if at_lo else "upper")
+    if best is None:
+        return None
+    _, dof, side = best
+    j = m.dof_jntid[dof]
+    lim = np.degrees(m.jnt_range[j][0 if side == "lower" else 1])
+    return Diagnosis(c.label, "limit", f"stopped by the {side} limit of joint "
+                     f"{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)} ({lim:.0f} deg)")  # fmt: skip

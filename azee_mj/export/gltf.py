@@ -1,0 +1,197 @@
+"""glTF 2.0 / GLB: the signer's visual geometry on a node per body, and one animation.
+
+Layout of the file:
+
+- node ``world`` (MuJoCo's world body) is the scene root; its rotation turns the signer
+  frame (x forward, y left, z up) into glTF's (y up, the signer facing +z). Below it, one
+  node per body, named as the MuJoCo body, nested as the bodies are; each body node's
+  transform relative to ``world`` is the body's ``xpos`` / ``xquat``.
+- Each body with visual geoms (those of ``groups``, default 2, the bundled signer's
+  visual class) has one mesh, one primitive per geom (MuJoCo's primitives tessellated),
+  with one material per MuJoCo material (its ``rgba``, made linear as glTF wants) or per
+  distinct geom colour.
+- One animation, ``motion``: a rotation channel per body that has a hinge, a translation
+  channel per body that has a slide (the face articulators), sampled at the rollout's
+  frames (LINEAR, times ``k / fps``).
+
+Needs ``pygltflib`` (``pip install azee_mj[export]``).
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+
+import mujoco
+import numpy as np
+
+from azee_mj.export import motion as mo
+from azee_mj.export.tessellate import SEGMENTS, geom_mesh
+
+#: Geom groups drawn by default (the bundled signer's visual geoms).
+VISUAL_GROUPS = (2,)
+#: The root node's rotation, quaternion ``xyzw`` (glTF order), from :data:`motion.YUP`.
+_R = mo.YUP
+
+
+def srgb_to_linear(rgba) -> list[float]:
+    """MuJoCo's display colour (sRGB) as glTF's linear ``baseColorFactor``; alpha kept."""
+    c = np.asarray(rgba[:3], float)
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return [*(float(x) for x in lin), float(rgba[3])]
+
+
+def _yup_quat_xyzw() -> list[float]:
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, _R.flatten())
+    return [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
+
+
+def build_gltf(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
+               groups=VISUAL_GROUPS, segments: int = SEGMENTS):
+    """The signer and its motion as a ``pygltflib.GLTF2`` with one binary blob.
+
+    Args:
+      model: the signer.
+      qpos: (T, nq) postures.
+      fps: frames per second of ``qpos``.
+      groups: geom groups to draw.
+      segments: tessellation resolution around a primitive's axis.
+    """
+    gl = mo.require("pygltflib", "glTF")
+    mo.check_qpos(model, qpos, fps)
+    names = mo.body_names(model)
+    rot, slide = mo.moving_bodies(model)
+    pos, quat = mo.body_frames(model, np.asarray(qpos, float))
+    lpos, lquat = mo.local_frames(model, pos, quat)
+
+    blob = bytearray()
+    g = gl.GLTF2(asset=gl.Asset(generator="azee_mj", version="2.0"))
+
+    def add_view(arr: np.ndarray, target=None) -> int:
+        while len(blob) % 4:
+            blob.append(0)
+        data = np.ascontiguousarray(arr).tobytes()
+        g.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob),
+                                           byteLength=len(data), target=target))  # fmt: skip
+        blob.extend(data)
+        return len(g.bufferViews) - 1
+
+    def add_accessor(arr: np.ndarray, type_: str, target=None, minmax=False) -> int:
+        ctype = gl.FLOAT if arr.dtype == np.float32 else gl.UNSIGNED_INT
+        acc = gl.Accessor(bufferView=add_view(arr, target), componentType=ctype,
+                          count=len(arr), type=type_)  # fmt: skip
+        if minmax:
+            a = arr.reshape(len(arr), -1)
+            acc.min, acc.max = a.min(0).tolist(), a.max(0).tolist()
+        g.accessors.append(acc)
+        return len(g.accessors) - 1
+
+    # materials: one per MuJoCo material, or per distinct rgba of an unmaterialed geom
+    mat_index: dict[object, int] = {}
+
+    def material(geom: int) -> int:
+        mid = model.geom_matid[geom]
+        if mid >= 0:
+            key = ("mat", int(mid))
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MATERIAL, mid)
+            rgba, shin = model.mat_rgba[mid], float(model.mat_shininess[mid])
+        else:
+            rgba, shin = model.geom_rgba[geom], 0.5
+            key = ("rgba", tuple(np.round(rgba, 4)))
+            name = "rgba_" + "_".join(f"{x:.2f}" for x in rgba)
+        if key not in mat_index:
+            g.materials.append(gl.Material(
+                name=name,
+                pbrMetallicRoughness=gl.PbrMetallicRoughness(
+                    baseColorFactor=srgb_to_linear(rgba), metallicFactor=0.0,
+                    roughnessFactor=float(np.clip(1.0 - 0.6 * shin, 0.2, 1.0))),
+                alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE",
+                doubleSided=False,
+            ))  # fmt: skip
+            mat_index[key] = len(g.materials) - 1
+        return mat_index[key]
+
+    # meshes, one per body with visual geoms
+    body_mesh: dict[int, int] = {}
+    for b in range(model.nbody):
+        prims = []
+        for geom in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b]):
+            if model.geom_group[geom] not in groups:
+                continue
+            m = geom_mesh(model, geom, segments)
+            if m is None:
+                continue
+            p, n, tri = m
+            prims.append(gl.Primitive(
+                attributes=gl.Attributes(
+                    POSITION=add_accessor(p.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER, True),
+                    NORMAL=add_accessor(n.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER)),
+                indices=add_accessor(tri.astype(np.uint32).reshape(-1), gl.SCALAR,
+                                     gl.ELEMENT_ARRAY_BUFFER),
+                material=material(geom),
+            ))  # fmt: skip
+        if prims:
+            g.meshes.append(gl.Mesh(name=names[b], primitives=prims))
+            body_mesh[b] = len(g.meshes) - 1
+
+    # nodes: node index == body id
+    for b in range(model.nbody):
+        node = gl.Node(name=names[b], mesh=body_mesh.get(b))
+        if b == 0:
+            node.rotation = _yup_quat_xyzw()
+        else:
+            t, q = lpos[0, b], lquat[0, b]
+            node.translation = [float(x) for x in t]
+            node.rotation = [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
+        g.nodes.append(node)
+    for b in range(1, model.nbody):
+        g.nodes[model.body_parentid[b]].children.append(b)
+    g.scenes = [gl.Scene(name="signer", nodes=[0])]
+    g.scene = 0
+
+    # the animation
+    T = len(qpos)
+    times = (np.arange(T) / fps).astype(np.float32)
+    t_acc = None
+    samplers, channels = [], []
+    for b in range(1, model.nbody):
+        for path, flag, values in (
+            ("rotation", rot[b], lquat[:, b][:, [1, 2, 3, 0]]),
+            ("translation", slide[b], lpos[:, b]),
+        ):
+            if not flag:
+                continue
+            if t_acc is None:
+                t_acc = add_accessor(times, gl.SCALAR, minmax=True)
+            out = add_accessor(values.astype(np.float32), gl.VEC4 if path == "rotation"
+                               else gl.VEC3)  # fmt: skip
+            samplers.append(gl.AnimationSampler(input=t_acc, output=out, interpolation="LINEAR"))
+            channels.append(gl.AnimationChannel(
+                sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=b, path=path)))
+    if channels:
+        g.animations = [gl.Animation(name="motion", samplers=samplers, channels=channels)]
+    g.buffers = [gl.Buffer(byteLength=len(blob))]
+    g.set_binary_blob(bytes(blob))
+    return g
+
+
+def glb_bytes(model: mujoco.MjModel, qpos: np.ndarray, fps: float, **kw) -> bytes:
+    """The GLB file's bytes (see :func:`build_gltf`)."""
+    return b"".join(build_gltf(model, qpos, fps, **kw).save_to_bytes())
+
+
+def write_gltf(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray,
+               fps: float, **kw) -> None:
+    """Write ``.glb`` (binary) or ``.gltf`` (JSON with the buffer embedded as a data URI)
+    to ``path`` as it is (the caller makes it atomic)."""
+    g = build_gltf(model, qpos, fps, **kw)
+    if str(path).lower().endswith(".glb"):
+        with open(path, "wb") as f:
+            f.write(b"".join(g.save_to_bytes()))
+    else:
+        data = g.binary_blob()
+        g.buffers[0].uri = ("data:application/octet-stream;base64,"
+                            + base64.b64encode(data).decode("ascii"))  # fmt: skip
+        with open(path, "w") as f:
+            f.write(g.to_json())

@@ -1,0 +1,254 @@
+"""``.pose`` (pose-format): the signer's keypoints in MediaPipe Holistic's layout.
+
+Components, with MediaPipe's names (the signer's own left and right, as MediaPipe uses
+them): ``POSE_LANDMARKS`` (the 33 BlazePose points), ``FACE_LANDMARKS`` (the face-mesh
+points the signer has an AZee site for, named by their face-mesh index as in
+pose-format's holistic files; ``468`` / ``473`` are the refined irises),
+``LEFT_HAND_LANDMARKS`` and ``RIGHT_HAND_LANDMARKS`` (21 points, wrist to fingertips).
+One person, confidence 1 on every point, the rollout's fps.
+
+Each point is a sum of weighted terms, each an AZee site or an AZee bone's head (the
+joint centre at its body's origin), or, for the legs the catalogue has no sites for, a
+fixed point of the pelvis (:data:`POINTS`; ``docs/exports.md`` tabulates it).
+
+Coordinates are those of a virtual orthographic camera in front of the signer, in pixels
+of a ``WIDTH`` x ``HEIGHT`` image, ``SCALE`` pixels a metre (the visualizer draws them as
+they are): ``x = CX + SCALE * y_signer`` (the signer's left to the right of the image,
+as a camera facing the signer sees it), ``y = CY - SCALE * z_signer`` (down),
+``z = -SCALE * x_signer`` (smaller is nearer the camera, as in MediaPipe).
+:func:`pose_to_signer` inverts it.
+
+Needs ``pose-format`` (``pip install azee_mj[export]``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+
+import mujoco
+import numpy as np
+
+from azee_mj.errors import AzeeError
+from azee_mj.export import motion as mo
+from azee_mj.sites import DEFAULT_MAP, SignerMap
+
+#: Pixels a metre, image size and where the signer frame's origin lands [px].
+SCALE = 500.0
+WIDTH, HEIGHT = 1000, 1100
+CX, CY = 500.0, 600.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Term:
+    """``weight`` times one of: AZee ``site``; the head of AZee ``bone``; ``offset`` [m] in
+    the frame of model body ``body``."""
+
+    weight: float = 1.0
+    site: str | None = None
+    bone: str | None = None
+    body: str | None = None
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+def _s(name: str, w: float = 1.0) -> Term:
+    return Term(w, site=name)
+
+
+def _b(name: str) -> Term:
+    return Term(bone=name)
+
+
+def _eye_corner(side: str, brow_end: str) -> tuple[Term, ...]:
+    # the eye plus the brow end's offset from the brow's middle: the corner below it
+    return (_s(f"EYE_{side}"), _s(f"{brow_end}_{side}"), _s(f"EB_{side}", -1.0))
+
+
+#: The bundled signer's legs (visual geoms on the pelvis): hip, knee, ankle, heel, toe
+#: in the pelvis frame [m], right side (the left mirrors y).
+LEG_POINTS_R = {
+    "HIP": (-0.015, -0.085, -0.02), "KNEE": (0.0, -0.095, -0.47),
+    "ANKLE": (-0.02, -0.1, -0.86), "HEEL": (-0.095, -0.1, -0.915),
+    "FOOT_INDEX": (0.155, -0.1, -0.915),
+}  # fmt: skip
+
+POSE_POINTS = (
+    "NOSE", "LEFT_EYE_INNER", "LEFT_EYE", "LEFT_EYE_OUTER", "RIGHT_EYE_INNER", "RIGHT_EYE",
+    "RIGHT_EYE_OUTER", "LEFT_EAR", "RIGHT_EAR", "MOUTH_LEFT", "MOUTH_RIGHT",
+    "LEFT_SHOULDER", "RIGHT_SHOULDER", "LEFT_ELBOW", "RIGHT_ELBOW", "LEFT_WRIST",
+    "RIGHT_WRIST", "LEFT_PINKY", "RIGHT_PINKY", "LEFT_INDEX", "RIGHT_INDEX", "LEFT_THUMB",
+    "RIGHT_THUMB", "LEFT_HIP", "RIGHT_HIP", "LEFT_KNEE", "RIGHT_KNEE", "LEFT_ANKLE",
+    "RIGHT_ANKLE", "LEFT_HEEL", "RIGHT_HEEL", "LEFT_FOOT_INDEX", "RIGHT_FOOT_INDEX",
+)  # fmt: skip
+#: MediaPipe's POSE_CONNECTIONS.
+POSE_LIMBS = (
+    (0, 1), (1, 2), (2, 3), (3, 7), (0, 4), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12),
+    (11, 13), (13, 15), (15, 17), (15, 19), (15, 21), (17, 19), (12, 14), (14, 16),
+    (16, 18), (16, 20), (16, 22), (18, 20), (11, 23), (12, 24), (23, 24), (23, 25),
+    (24, 26), (25, 27), (26, 28), (27, 29), (28, 30), (29, 31), (30, 32), (27, 31), (28, 32),
+)  # fmt: skip
+HAND_POINTS = (
+    "WRIST", "THUMB_CMC", "THUMB_MCP", "THUMB_IP", "THUMB_TIP",
+    "INDEX_FINGER_MCP", "INDEX_FINGER_PIP", "INDEX_FINGER_DIP", "INDEX_FINGER_TIP",
+    "MIDDLE_FINGER_MCP", "MIDDLE_FINGER_PIP", "MIDDLE_FINGER_DIP", "MIDDLE_FINGER_TIP",
+    "RING_FINGER_MCP", "RING_FINGER_PIP", "RING_FINGER_DIP", "RING_FINGER_TIP",
+    "PINKY_MCP", "PINKY_PIP", "PINKY_DIP", "PINKY_TIP",
+)  # fmt: skip
+#: MediaPipe's HAND_CONNECTIONS.
+HAND_LIMBS = (
+    (0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5, 9), (9, 10),
+    (10, 11), (11, 12), (9, 13), (13, 14), (14, 15), (15, 16), (13, 17), (0, 17), (17, 18),
+    (18, 19), (19, 20),
+)  # fmt: skip
+#: Face-mesh index -> AZee site (the subject's right is MediaPipe's lower-numbered side).
+FACE_SITES = {
+    "1": "NO", "2": "NSP", "13": "MO", "152": "CH", "151": "FH",
+    "468": "EYE_R", "473": "EYE_L",
+    "105": "EB_R", "334": "EB_L", "107": "EBi_R", "336": "EBi_L", "70": "EBe_R", "300": "EBe_L",
+    "61": "MO_R", "291": "MO_L", "98": "NO_R", "327": "NO_L", "50": "CK_R", "280": "CK_L",
+    "21": "TE_R", "251": "TE_L", "234": "EAR_R", "454": "EAR_L", "93": "LOBE_R", "323": "LOBE_L",
+}  # fmt: skip
+#: Lines drawn between face points (brows, eyes, nose, mouth, the side of the face).
+FACE_LIMBS_BY_NAME = (
+    ("70", "105"), ("105", "107"), ("336", "334"), ("334", "300"), ("468", "473"),
+    ("151", "1"), ("98", "2"), ("2", "327"), ("61", "13"), ("13", "291"), ("13", "152"),
+    ("21", "234"), ("234", "93"), ("251", "454"), ("454", "323"), ("50", "61"), ("280", "291"),
+)  # fmt: skip
+
+_HAND_DIGITS = (("THUMB", "thumb", "T"), ("INDEX_FINGER", "index", "I"),
+                ("MIDDLE_FINGER", "middle", "M"), ("RING_FINGER", "ring", "R"),
+                ("PINKY", "little", "L"))  # fmt: skip
+
+
+def _pose_point_terms(name: str) -> tuple[Term, ...]:
+    side = "L" if name.startswith("LEFT") else "R"
+    part = name.split("_", 1)[1] if name.startswith(("LEFT_", "RIGHT_")) else name
+    if name == "NOSE":
+        return (_s("NO"),)
+    if name.startswith("MOUTH_"):
+        return (_s("MO_L" if name.endswith("LEFT") else "MO_R"),)
+    table = {
+        "EYE": (_s(f"EYE_{side}"),), "EYE_INNER": _eye_corner(side, "EBi"),
+        "EYE_OUTER": _eye_corner(side, "EBe"), "EAR": (_s(f"EAR_{side}"),),
+        "SHOULDER": (_b(f"arm_{side}"),), "ELBOW": (_b(f"f_arm_{side}"),),
+        "WRIST": (_s(f"WR_{side}"),), "PINKY": (_b(f"little_{side}_1"),),
+        "INDEX": (_b(f"index_{side}_1"),), "THUMB": (_b(f"thumb_{side}_2"),),
+    }  # fmt: skip
+    if part in table:
+        return table[part]
+    x, y, z = LEG_POINTS_R[part]
+    return (Term(body="pelvis", offset=(x, y if side == "R" else -y, z)),)
+
+
+def _hand_terms(side: str) -> list[tuple[Term, ...]]:
+    out = [(_s(f"WR_{side}"),)]
+    for _, bone, letter in _HAND_DIGITS:
+        out += [(_b(f"{bone}_{side}_{n}"),) for n in (1, 2, 3)]
+        out.append((_s(f"{letter}_TIP_{side}"),))
+    return out
+
+
+#: Component -> (point names, the terms of each point).
+POINTS: dict[str, tuple[tuple[str, ...], tuple[tuple[Term, ...], ...]]] = {
+    "POSE_LANDMARKS": (POSE_POINTS, tuple(_pose_point_terms(p) for p in POSE_POINTS)),
+    "FACE_LANDMARKS": (tuple(FACE_SITES), tuple((_s(s),) for s in FACE_SITES.values())),
+    "LEFT_HAND_LANDMARKS": (HAND_POINTS, tuple(_hand_terms("L"))),
+    "RIGHT_HAND_LANDMARKS": (HAND_POINTS, tuple(_hand_terms("R"))),
+}
+
+
+def signer_to_pose(p: np.ndarray) -> np.ndarray:
+    """Signer-frame points (..., 3) [m] -> .pose coordinates (..., 3) [px]."""
+    p = np.asarray(p, float)
+    return np.stack([CX + SCALE * p[..., 1], CY - SCALE * p[..., 2], -SCALE * p[..., 0]], -1)
+
+
+def pose_to_signer(p: np.ndarray) -> np.ndarray:
+    """.pose coordinates (..., 3) [px] -> signer-frame points (..., 3) [m]."""
+    p = np.asarray(p, float)
+    return np.stack([-p[..., 2] / SCALE, (p[..., 0] - CX) / SCALE, (CY - p[..., 1]) / SCALE], -1)
+
+
+def keypoints(model: mujoco.MjModel, qpos: np.ndarray,
+              signer_map: SignerMap = DEFAULT_MAP) -> dict[str, np.ndarray]:
+    """Per component, its points (T, P, 3) in the signer frame [m] on every frame."""
+    data = mujoco.MjData(model)
+    T = len(qpos)
+    site = np.empty((T, model.nsite, 3))
+    xpos = np.empty((T, model.nbody, 3))
+    xmat = np.empty((T, model.nbody, 3, 3))
+    for k in range(T):
+        data.qpos[:] = qpos[k]
+        mujoco.mj_kinematics(model, data)
+        site[k], xpos[k] = data.site_xpos, data.xpos
+        xmat[k] = data.xmat.reshape(-1, 3, 3)
+    out = {}
+    for c, (names, terms) in POINTS.items():
+        pts = np.zeros((T, len(names), 3))
+        for i, point in enumerate(terms):
+            for t in point:
+                w, s, b, off = _resolve(model, t, signer_map)
+                pts[:, i] += w * (site[:, s] if s >= 0 else xpos[:, b] + xmat[:, b] @ off)
+        out[c] = pts
+    return out
+
+
+def _resolve(model, t: Term, smap: SignerMap):
+    if t.site is not None:
+        s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, smap.sites[t.site])
+        if s < 0:
+            raise AzeeError(f".pose export: the model has no site {smap.sites[t.site]!r}")
+        return (t.weight, s, -1, None)
+    body = smap.bones[t.bone].body if t.bone is not None else t.body
+    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    if b < 0:
+        raise AzeeError(f".pose export: the model has no body {body!r}")
+    return (t.weight, -1, b, np.asarray(t.offset, float))
+
+
+def _face_limbs() -> list[tuple[int, int]]:
+    idx = {n: i for i, n in enumerate(FACE_SITES)}
+    return [(idx[a], idx[b]) for a, b in FACE_LIMBS_BY_NAME]
+
+
+def _hand_colors() -> list[tuple[int, int, int]]:
+    # pose-format's holistic hand palette: a hue per finger, lighter toward the tip
+    base = [(192, 0, 0), (192, 192, 0), (0, 192, 0), (0, 192, 192), (0, 0, 192)]
+    return [(255, 0, 0)] + [tuple(min(255, math.floor(x + 35 * (i % 4))) for x in base[i // 4])
+                            for i in range(20)]  # fmt: skip
+
+
+def build_pose(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
+               signer_map: SignerMap = DEFAULT_MAP):
+    """The keypoints as a ``pose_format.Pose`` (see the module docstring)."""
+    pf = mo.require("pose_format", ".pose")
+    mo.require("pose_format.numpy", ".pose")
+    from pose_format.numpy.pose_body import NumPyPoseBody
+    from pose_format.pose_header import PoseHeader, PoseHeaderComponent, PoseHeaderDimensions
+
+    mo.check_qpos(model, qpos, fps)
+    pts = keypoints(model, np.asarray(qpos, float), signer_map)
+    limbs = {"POSE_LANDMARKS": list(POSE_LIMBS), "FACE_LANDMARKS": _face_limbs(),
+             "LEFT_HAND_LANDMARKS": list(HAND_LIMBS), "RIGHT_HAND_LANDMARKS": list(HAND_LIMBS)}
+    colors = {"POSE_LANDMARKS": [(255, 0, 0)], "FACE_LANDMARKS": [(128, 0, 0)],
+              "LEFT_HAND_LANDMARKS": _hand_colors(), "RIGHT_HAND_LANDMARKS": _hand_colors()}
+    components = [
+        PoseHeaderComponent(name=c, points=list(POINTS[c][0]), limbs=limbs[c],
+                            colors=colors[c], point_format="XYZC")
+        for c in POINTS
+    ]  # fmt: skip
+    header = PoseHeader(version=0.2, dimensions=PoseHeaderDimensions(WIDTH, HEIGHT, 0),
+                        components=components)  # fmt: skip
+    data = np.concatenate([signer_to_pose(pts[c]) for c in POINTS], axis=1)
+    data = data[:, None].astype(np.float32)  # (frames, people, points, dims)
+    conf = np.ones(data.shape[:3], np.float32)
+    return pf.Pose(header, NumPyPoseBody(fps=float(fps), data=data, confidence=conf))
+
+
+def write_pose(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray, fps: float,
+               *, signer_map: SignerMap = DEFAULT_MAP) -> None:
+    """Write the keypoints to ``path`` as ``.pose`` (the caller makes it atomic)."""
+    pose = build_pose(model, qpos, fps, signer_map=signer_map)
+    with open(path, "wb") as f:
+        pose.write(f)

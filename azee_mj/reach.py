@@ -1,0 +1,175 @@
+"""Analytic two-bone arm postures: a start in the natural basin for the posture solver.
+
+A numerical solver started from the wrong posture converges to the wrong branch (the elbow
+up instead of down, the arm rotated the other way). For a hand target the arm's posture is
+known in closed form up to one angle, the elbow's *swivel* about the shoulder-wrist line
+(Tolani, Goswami and Badler 2000): the elbow angle from the law of cosines, the swivel chosen
+as people choose it, the elbow hanging below the shoulder-wrist line and turned a little out
+(Soechting and Flanders 1989). :func:`arm_seed` computes that posture for the bundled
+signer's arm joints (shoulder flexion about -y, abduction about -x, rotation about the arm,
+elbow flexion about -y, mirrored on the left); the solver then refines it.
+
+Units: metres, radians.
+
+:func:`arm_seeds` turns a problem's placements into such starts for the solver.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+from azee_mj.kinematics import SitePos
+
+#: The hand comes to its target from this far in front of the shoulder [m].
+APPROACH = 0.3
+#: How far each of two hands meeting in the signing space starts from its centre [m].
+MEET_GAP = 0.05
+#: The elbow's swivel out of the vertical plane through the shoulder-wrist line [rad].
+SWIVEL_OUT = np.deg2rad(25.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Arm:
+    """One arm of the signer: its shoulder, elbow and wrist bodies and the four joints the
+    two-bone solution sets (shoulder flexion, abduction, rotation; elbow flexion), and the
+    sign of the outward (lateral) world y direction (-1 right arm, +1 left arm)."""
+
+    upper: str
+    fore: str
+    hand: str
+    flex: str
+    abd: str
+    rot: str
+    elbow: str
+    out: float
+
+
+def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
+    """The arms of a signer mapped like the bundled one: the bones ``arm_X``, ``f_arm_X``,
+    ``palm_X`` and the track ``arm_X`` (clavicle elevation and protraction, then shoulder
+    flexion, abduction and rotation, then elbow flexion...)."""
+    out = []
+    for s in sides:
+        track = signer_map.tracks.get(f"arm_{s}", ())
+        bones = [signer_map.bones.get(f"{b}_{s}") for b in ("arm", "f_arm", "palm")]
+        if len(track) < 6 or None in bones:
+            continue
+        flex, abd, rot, elbow = track[2:6]
+        out.append(Arm(bones[0].body, bones[1].body, bones[2].body, flex, abd, rot, elbow,
+                       -1.0 if s == "R" else 1.0))
+    return tuple(out)
+
+
+def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: np.ndarray,
+             target: np.ndarray) -> dict[str, float] | None:
+    """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
+    posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel.
+
+    The wrist goes short of ``target`` by the hand point's distance from the wrist, on the
+    line from a point ``APPROACH`` in front of the shoulder (a straight wrist). Returns None when the joint
+    frames are not the ones this solution assumes (another signer).
+    """
+    m, d = model, data
+    bid = {n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
+           for n in (arm.upper, arm.fore, arm.hand)}  # fmt: skip
+    jid = {n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)
+           for n in (arm.flex, arm.abd, arm.rot, arm.elbow)}  # fmt: skip
+    if min(bid.values()) < 0 or min(jid.values()) < 0:
+        return None
+    s = d.xpos[bid[arm.upper]].copy()
+    e0 = d.xpos[bid[arm.fore]]
+    w0 = d.xpos[bid[arm.hand]]
+    l1 = float(np.linalg.norm(e0 - s))
+    l2 = float(np.linalg.norm(w0 - e0))
+    # The hand continues the forearm (a straight wrist) toward the target, coming from in
+    # front of the shoulder (so it reaches the face or the chest from the front).
+    Rp = d.xmat[m.body_parentid[bid[arm.upper]]].reshape(3, 3)
+    target = np.asarray(target, float)
+    source = s + APPROACH * Rp[:, 0]
+    reach_dir = (target - source) / max(float(np.linalg.norm(target - source)), 1e-9)
+    w = target - float(np.linalg.norm(np.asarray(hand_point, float) - w0)) * reach_dir
+    # The arm's rest frame: the parent (clavicle) frame of the shoulder joints.
+    x = Rp.T @ (w - s)
+    L = float(np.linalg.norm(x))
+    L = min(max(L, abs(l1 - l2) + 1e-6), l1 + l2 - 1e-6)
+    n = x / max(np.linalg.norm(x), 1e-9)
+    cos_e = (L * L - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
+    e = float(np.arccos(np.clip(cos_e, -1.0, 1.0)))
+    a1 = (l1 * l1 + L * L - l2 * l2) / (2.0 * L)
+    rho = np.sqrt(max(l1 * l1 - a1 * a1, 0.0))
+    down = np.array([0.0, 0.0, -1.0]) + n[2] * n
+    if np.linalg.norm(down) < 1e-6:
+        down = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    down /= np.linalg.norm(down)
+    side = np.cross(n, down)
+    if side[1] * arm.out < 0:
+        side = -side
+    elbow = n * a1 + rho * (np.cos(SWIVEL_OUT) * down + np.sin(SWIVEL_OUT) * side)
+    u = elbow / l1
+    # u = (cos a sin f, -sin a, -cos a cos f) in the rest frame; mirrored on the left.
+    abd = float(np.arcsin(np.clip(-u[1] * -arm.out, -1.0, 1.0)))
+    flex = float(np.arctan2(u[0], -u[2]))
+    v = (L * n - elbow) / l2
+    Ry = _rot_y(-flex)
+    Rx = _rot_x(-abd * -arm.out)
+    vl = (Ry @ Rx).T @ v
+    # forearm in the upper arm's frame: (sin e cos r, sin e sin r, -cos e)
+    rot = float(np.arctan2(vl[1] * -arm.out, vl[0])) if e > 1e-3 else 0.0
+    return {arm.flex: flex, arm.abd: abd, arm.rot: rot, arm.elbow: e}
+
+
+def _rot_x(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_y(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
+              meet: str | None = None) -> tuple[np.ndarray, ...]:
+    """Starts (nq,) for a problem: each free arm in its two-bone posture for the first
+    placement of a site on its hand, and, when a placement joins the two hands, both hands
+    meeting at model site ``meet`` (the neutral signing space). ``hand_of(site)`` is the
+    arm whose hand carries a model site, or None. Empty when no placement moves a free arm.
+    """
+    m, d = solver.model, solver.data
+    d.qpos[:] = q0
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    free = set(free)
+    arms = [a for a in arms if {a.flex, a.abd, a.rot, a.elbow} <= free]
+
+    def arm_of(site: str) -> Arm | None:
+        arm = hand_of(site)
+        return arm if arm in arms else None
+
+    def seeded(goals) -> np.ndarray:
+        q = q0.copy()
+        for arm, site, target in goals:
+            sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(site)], target)
+            for j, v in (sol or {}).items():
+                q[m.jnt_qposadr[solver.joint_id(j)]] = v
+        return q
+
+    reach, meeting, used = [], [], set()
+    for c in cons:
+        if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
+            continue
+        used.add(arm)
+        reach.append((arm, c.site, solver.kinematics().value(c.target)))
+        other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
+        if other is not None and other is not arm and meet is not None and not meeting:
+            # each hand a little to its own side, so that they start apart and close in
+            centre = d.site_xpos[solver.site_id(meet)].copy()
+            gap = np.array([0.0, MEET_GAP, 0.0])
+            meeting = [(arm, c.site, centre + arm.out * gap),
+                       (other, c.target.site, centre + other.out * gap)]
+    return tuple(seeded(g) for g in (reach, meeting) if g)

@@ -1,0 +1,42 @@
+"""A few hundred seeded mutants of the bundled examples through ``azee-mj realize``, and of
+a rollout file through ``azee-mj check``: no traceback, no hang, no NaN output (the
+1,000-mutant run is ``bench/fuzz.py``)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+_spec = importlib.util.spec_from_file_location(
+    "bench_fuzz", Path(__file__).resolve().parent.parent / "bench" / "fuzz.py")
+fuzz = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(fuzz)
+
+COUNT = 250
+
+
+@pytest.mark.fuzz
+def test_mutants_end_in_a_rollout_or_one_clean_message(tmp_path):
+    outcomes, failures = {}, []
+    for label, m in fuzz.mutants(COUNT, seed=14):
+        outcome, detail = fuzz.run_one(m, tmp_path, fps=10.0, timeout=60.0)
+        outcomes[outcome] = outcomes.get(outcome, 0) + 1
+        if outcome not in ("ok", "rejected"):
+            failures.append(f"{label}: {outcome}: {detail}")
+    assert failures == []
+    # The mutator reaches both ends: scores that still realize and scores that are refused.
+    assert outcomes.get("ok", 0) >= 10 and outcomes.get("rejected", 0) >= 100, outcomes
+
+
+@pytest.mark.fuzz
+def test_damaged_rollouts_end_in_a_check_or_one_clean_message(tmp_path):
+    outcomes, failures = {}, []
+    for label, m in fuzz.rollout_mutants(200, seed=14):
+        outcome, detail = fuzz.check_one(m, tmp_path)
+        outcomes[outcome] = outcomes.get(outcome, 0) + 1
+        if outcome not in ("ok", "rejected"):
+            failures.append(f"{label}: {outcome}: {detail}")
+    assert failures == []
+    assert outcomes.get("ok", 0) >= 20 and outcomes.get("rejected", 0) >= 100, outcomes

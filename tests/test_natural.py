@@ -1,0 +1,290 @@
+"""Natural postures: the effort term, its gradient, strict priorities, seeds, mirror, speed."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from azee_mj import constraints as cn
+from azee_mj import ik, mirror, natural, reach, timeline
+from azee_mj.kinematics import Const, SitePos
+from azee_mj.schedule import make_solver
+from azee_mj.sites import DEFAULT_MAP
+
+
+@pytest.fixture(scope="module")
+def solver() -> ik.Solver:
+    return make_solver(seed=0)
+
+
+def _posture(m: mujoco.MjModel, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    lo, hi = m.jnt_range[m.dof_jntid].T
+    return np.where(m.jnt_limited[m.dof_jntid], rng.uniform(lo, hi), 0.0)
+
+
+def _fk(m, d, q):
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+
+
+def test_effort_torques_are_mujocos_gravity_torques(solver):
+    m = mujoco.MjModel.from_xml_path(str(__import__("azee_mj").MODEL_PATH))
+    m.body_gravcomp[:] = 0.0
+    d = mujoco.MjData(m)
+    hinges = np.flatnonzero(m.jnt_type[m.dof_jntid] == mujoco.mjtJoint.mjJNT_HINGE)
+    effort = natural.Effort(m, hinges)
+    for seed in range(5):
+        d.qpos[:] = _posture(m, seed)
+        d.qvel[:] = 0.0
+        mujoco.mj_forward(m, d)
+        np.testing.assert_allclose(effort.torques(d), -d.qfrc_bias[hinges], atol=1e-10)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 10_000))
+def test_effort_jacobian_matches_finite_differences(solver, seed):
+    m, d = solver.model, mujoco.MjData(solver.model)
+    q = _posture(m, seed)
+    dofs = solver.effort_dofs
+    effort = natural.Effort(m, dofs)
+    _fk(m, d, q)
+    J = effort.jacobian(d, dofs)
+    fd = np.empty_like(J)
+    h = 1e-6
+    for c, k in enumerate(dofs):
+        tau = []
+        for s in (1.0, -1.0):
+            qq = q.copy()
+            qq[k] += s * h
+            _fk(m, d, qq)
+            tau.append(effort.torques(d))
+        fd[:, c] = (tau[0] - tau[1]) / (2 * h)
+    np.testing.assert_allclose(J, fd, atol=1e-6 * max(1.0, np.abs(fd).max()))
+
+
+def test_natural_rows_jacobian_matches_finite_differences(solver):
+    m, d = solver.model, mujoco.MjData(solver.model)
+    nat = solver.naturalness
+    effort = natural.Effort(m, solver.effort_dofs)
+    cols = np.array([solver.joint_id(j) for j in DEFAULT_MAP.tracks["arm_R"]])
+    q = _posture(m, 3)
+    _fk(m, d, q)
+    r, J = natural.rows(nat, effort, d, cols)
+    h = 1e-6
+    for c, k in enumerate(cols):
+        qq = q.copy()
+        qq[k] += h
+        _fk(m, d, qq)
+        rp, _ = natural.rows(nat, effort, d, cols)
+        np.testing.assert_allclose((rp - r) / h, J[:, c], atol=1e-4)
+
+
+def test_a_hanging_arm_costs_no_effort_and_a_raised_one_does(solver):
+    m, d = solver.model, mujoco.MjData(solver.model)
+    effort = natural.Effort(m, solver.effort_dofs)
+    shoulder = list(solver.effort_dofs).index(solver.joint_id("arm_R_flex"))
+    _fk(m, d, solver.natural)
+    hanging = abs(effort.torques(d)[shoulder])
+    q = solver.natural.copy()
+    q[solver.joint_id("arm_R_flex")] = np.pi / 2  # arm straight forward
+    _fk(m, d, q)
+    raised = abs(effort.torques(d)[shoulder])
+    # the whole arm's weight (about 3 kg) about 0.3 m out, against a relaxed arm
+    assert raised > 5.0
+    assert hanging < 0.05 * raised
+
+
+def _chin_problem(solver):
+    arm = tuple(DEFAULT_MAP.tracks["arm_R"])
+    return ik.IKProblem((cn.Place("I_TIP_R", SitePos("CH"), 1e-3, "chin"),), arm)
+
+
+def _index_hand(solver):
+    q = solver.natural.copy()
+    for mid, w in (("fist", 1.0), ("index_bend", -1.04), ("index_hook", -1.1)):
+        for j, v in DEFAULT_MAP.morphs[mid].joint_changes("R").items():
+            q[solver.joint_id(j)] += w * v
+    return np.clip(q, solver.lower, solver.upper)
+
+
+def _cost(solver, problem, q):
+    d = solver.data
+    _fk(solver.model, d, q)
+    plan = solver.plan(problem)
+    r, _ = natural.rows(solver.naturalness, plan.effort, d, plan.free)
+    return float(r @ r)
+
+
+def test_the_natural_term_never_moves_a_met_constraint(solver):
+    # Solved first without naturalness (the first posture reached), then polished: the
+    # polish lowers the natural cost and the constraint stays within 5 % of its tolerance.
+    q0 = _index_hand(solver)
+    problem = _chin_problem(solver)
+    plain = solver.solve(ik.IKProblem(problem.constraints, problem.free_joints, natural=False), q0)
+    assert plain.converged
+    polished = solver.solve(problem, plain.qpos)
+    assert polished.converged
+    assert polished.residuals[0].value <= 0.05e-3
+    assert _cost(solver, problem, polished.qpos) < 0.8 * _cost(solver, problem, plain.qpos)
+
+
+def test_the_hand_goes_to_the_face_not_the_face_to_the_hand(solver):
+    rollout = timeline.realize({
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "C", "kind": "sync", "start": 0, "end": 1.0, "children": [
+            {"name": "HS", "kind": "cstr", "start": 0, "end": 1.0, "constraints": [
+                {"type": "morph", "id": "fist", "weight": 1},
+                {"type": "morph", "id": "index_bend", "weight": -1.04},
+                {"type": "morph", "id": "index_hook", "weight": -1.1}]},
+            {"name": "K", "kind": "cstr", "start": 0.4, "end": 1.0, "constraints": [
+                {"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"}]}]}}, solver=solver)
+    assert all(t.ok for t in rollout.traces)
+    head_and_trunk = [solver.joint_id(j) for t in ("head", "spine") for j in DEFAULT_MAP.tracks[t]]
+    assert np.abs(rollout.qpos[:, head_and_trunk]).max() == 0.0
+
+
+def test_recruited_trunk_returns_to_neutral(solver):
+    # Out of the arm's reach alone: the trunk leans to help, then straightens once the
+    # block has ended.
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0, "children": [
+            {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
+                {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}]}]}}
+    rollout = timeline.realize(score, solver=solver)
+    spine = [solver.joint_id(j) for j in DEFAULT_MAP.tracks["spine"]]
+    assert all(t.ok for t in rollout.traces)
+    assert np.abs(rollout.qpos[rollout.time < 0.8][:, spine]).max() > 0.05
+    np.testing.assert_allclose(rollout.qpos[-1, spine], solver.natural[spine], atol=1e-9)
+
+
+def test_two_bone_seed_puts_the_wrist_on_target_with_the_elbow_below(solver):
+    m, d = solver.model, mujoco.MjData(solver.model)
+    rng = np.random.default_rng(1)
+    for arm in reach.arms_of(DEFAULT_MAP):
+        for _ in range(20):
+            _fk(m, d, solver.natural)
+            shoulder = d.xpos[solver.body_id(arm.upper)].copy()
+            wrist = d.xpos[solver.body_id(arm.hand)].copy()
+            target = shoulder + rng.uniform([0.15, -0.25, -0.3], [0.45, 0.25, 0.15])
+            if np.linalg.norm(target - shoulder) > 0.5:
+                continue
+            q = solver.natural.copy()
+            for j, v in reach.arm_seed(m, d, arm, wrist, target).items():
+                q[solver.joint_id(j)] = v
+            _fk(m, d, q)
+            np.testing.assert_allclose(d.xpos[solver.body_id(arm.hand)], target, atol=1e-9)
+            elbow = d.xpos[solver.body_id(arm.fore)]
+            line = (target - shoulder) / np.linalg.norm(target - shoulder)
+            below = elbow - shoulder - line * ((elbow - shoulder) @ line)
+            assert below[2] < 0.0  # the elbow hangs below the shoulder-wrist line
+
+
+def test_a_per_frame_solve_stays_within_its_step(solver):
+    q0 = _index_hand(solver)
+    far = tuple(np.array([0.35, -0.1, 0.55]))
+    problem = ik.IKProblem((cn.Place("I_TIP_R", Const(far), 1e-3, "far"),),
+                           tuple(DEFAULT_MAP.tracks["arm_R"]), max_change=0.1)  # fmt: skip
+    res = solver.solve(problem, q0)
+    assert np.abs(res.qpos - q0).max() <= 0.1 + 1e-12
+
+
+def test_joints_never_exceed_25_rad_per_s_in_the_examples(solver):
+    for name in ("bien", "armoire", "nicht-sondern", "info-about"):
+        rollout = timeline.realize(f"examples/{name}.json", solver=solver)
+        speed = np.abs(np.diff(rollout.qpos, axis=0)).max() * rollout.fps
+        assert speed <= 25.0, (name, speed)
+
+
+def _mirrored(site_pos: np.ndarray, names) -> np.ndarray:
+    idx = [names.index(mirror.mirror_name(n)) for n in names]
+    return site_pos[:, idx] * np.array([1.0, -1.0, 1.0])
+
+
+def test_left_handed_signing_is_the_mirror_of_right_handed(solver):
+    import json
+    from pathlib import Path
+
+    score = json.loads(Path("examples/bien.json").read_text())
+    right = timeline.realize(score, solver=solver)
+    left = timeline.realize({**score, "strong_side": "L"}, solver=solver)
+    names = list(right.site_names)
+    assert np.abs(_mirrored(right.site_pos, names) - left.site_pos).max() < 1e-6
+    assert [t.ok for t in left.traces] == [t.ok for t in right.traces]
+
+
+def test_mirror_of_a_score_swaps_sides_and_reflects(solver):
+    from azee_mj.score import load_score
+
+    s = load_score({
+        "format": "azee-score", "version": 1, "strong_side": "L",
+        "root": {"name": "A", "kind": "cstr", "start": 0, "end": 1, "constraints": [
+            {"type": "place", "site": "@I_TIP(s)", "at": {"translate": "^ssp", "by": [0.1, 0.2, 0.3]}},
+            {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along",
+             "vector": {"cross": ["lat(s)", "up"]}}]}})
+    m = mirror.mirror_score(s)
+    assert m.strong_side == "R"
+    place, orient = m.root.constraints
+    assert place.site.name == "I_TIP_R"
+    assert place.at.v.xyz == (0.1, -0.2, 0.3)
+    assert orient.bone.name == "palm_L"
+    # a reflection M turns a x b into -(Ma x Mb)
+    assert orient.vector.v.a.name == "right" and orient.vector.v.a.xyz == (0.0, -1.0, 0.0)
+    assert mirror.mirror_score(mirror.mirror_score(m)).root.constraints[0] == place
+
+
+_UNREACHABLE = {
+    "format": "azee-score", "version": 1, "strong_side": "R",
+    "root": {"name": "R", "kind": "sync", "start": 0, "end": 1.0, "children": [
+        {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
+            {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [1.2, 0, 0]}}]},
+        {"name": "TWO", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "left"},
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "right"}]}]}}
+
+
+def test_a_miss_says_why(solver):
+    rollout = timeline.realize(_UNREACHABLE, solver=solver)
+    why = {f"{t.block}#{t.index}": t.reason for t in rollout.traces}
+    assert why["R.FAR#1"] == ("out of reach by 462 mm (the target is 1189 mm from clav_R, "
+                              "the limb reaches 727 mm)")
+    assert why["R.TWO#1"] == "conflicts with R.TWO#2: each can be met without the other"
+    assert why["R.TWO#2"] == "conflicts with R.TWO#1: each can be met without the other"
+
+
+def test_a_joint_limit_is_named(solver):
+    # The face turned straight back: the neck, head and trunk rotations all end at limits.
+    score = {"format": "azee-score", "version": 1, "strong_side": "R",
+             "root": {"name": "L", "kind": "cstr", "start": 0, "end": 0.5, "constraints": [
+                 {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along",
+                  "vector": {"add": ["back", {"scale": "left", "by": 0.2}]}}]}}
+    (trace,) = timeline.realize(score, solver=solver).traces
+    assert not trace.ok
+    assert trace.reason.startswith("stopped by the upper limit of joint ")
+    assert trace.reason.split("joint ")[1].split(" ")[0] in (
+        DEFAULT_MAP.tracks["head"] + DEFAULT_MAP.tracks["spine"])
+
+
+def test_realize_strict_exits_1_on_a_miss(tmp_path):
+    import json
+
+    from azee_mj.cli import main
+
+    score = tmp_path / "far.json"
+    score.write_text(json.dumps(_UNREACHABLE))
+    out = tmp_path / "far.npz"
+    assert main(["realize", str(score), "-o", str(out)]) == 0
+    assert main(["realize", str(score), "-o", str(out), "--strict"]) == 1
+
+
+def test_the_bundled_signer_mirrors(solver):
+    jm = mirror.JointMirror.of(solver.model)
+    assert jm is not None
+    q = _posture(solver.model, 7)
+    assert not np.array_equal(jm(q), q)
+    np.testing.assert_array_equal(jm(jm(q)), q)

@@ -126,10 +126,11 @@ class Motion:
             if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
                 holds[-1][1] = k.end
             else:
-                holds.append([k.start, k.end, qk, k.relax])
+                holds.append([k.start, k.end, qk, k.relax,
+                              all(isinstance(c, cn.JointTarget) for c in k.cons)])
         prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
         first = True
-        for a, b, qk, relax in holds:
+        for a, b, qk, relax, shape_only in holds:
             if relax:
                 need = max(MIN_BLEND, 1.875 * float(np.max(np.abs(qk - prev_q))) / BLEND_SPEED)
                 w0, w1 = a, min(b, a + max(need, min(MAX_BLEND, b - a)))
@@ -138,17 +139,24 @@ class Motion:
             else:
                 gap = a - prev_end
                 need = max(MIN_BLEND, 1.875 * float(np.max(np.abs(qk - prev_q))) / BLEND_SPEED)
+                # the shortest blend that keeps every joint under MAX_JOINT_SPEED
+                fastest = 1.875 * float(np.max(np.abs(qk - prev_q))) / MAX_JOINT_SPEED
                 if first and a <= 1e-9:
                     w0 = w1 = a
                 elif gap >= 1e-9:
                     w0, w1 = max(prev_end, a - max(min(gap, MAX_BLEND), min(need, gap))), a
                     if first:
                         w0 = max(0.0, a - max(min(a, MAX_BLEND), need))
+                    # a gap too short for the change: start inside the previous hold
+                    if w1 - w0 < fastest and not first:
+                        w0 = max(prev_start, w1 - fastest)
                 else:  # no gap: blend at the end of the previous hold
                     w0, w1 = max(prev_start, a - need), a
                 pins = [e for e in carried if e < w1 + 1e-9]
                 if pins:  # never shorter than MIN_BLEND: a carried hold may end as this starts
                     w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
+                if w1 - w0 < fastest and not (first and a <= 1e-9) and shape_only:
+                    w1 = min(b, w0 + fastest)  # still too fast: finish a shape change late
             sel = (times >= w0) & (times < w1)
             if w1 > w0:
                 u = minjerk((times[sel] - w0) / (w1 - w0))[:, None]

@@ -8,7 +8,8 @@ written before this layout hold a dense ``residuals`` (T, C) (NaN outside) and s
 The schedule is stored as parallel arrays and restored as
 :class:`~azee_mj.schedule.TrackInterval` records. A file holding only the required arrays
 (``time``, ``qpos``, ``fps``, ``site_names``, ``site_pos``) loads with an empty schedule,
-no traces and zero stats.
+no traces and zero stats. The solve times are not stored (they read 0 after loading), so
+that a file depends only on the score, the options and the package version.
 
 :func:`load_rollout` validates everything it reads (names, shapes, dtypes, finite values,
 fps, sizes announced by array headers before reading them) and raises
@@ -61,7 +62,9 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
         "schedule_track": np.array([i.track for i in ivs], dtype=str),
         "schedule_block": np.array([i.block for i in ivs], dtype=str),
         "schedule_span": np.array([(i.start, i.end) for i in ivs], dtype=float).reshape(len(ivs), 2),
-        "stats": np.array([float(getattr(s, k)) for k in _STATS]),
+        # wall-clock times stay out of the file (0 here; --report has them): the same score
+        # and options give the same bytes in any process
+        "stats": np.array([float(getattr(s, k)) if "time" not in k else 0.0 for k in _STATS]),
         "stats_iterations": np.asarray(s.per_problem_iterations, dtype=np.int64),
     }
 

@@ -25,21 +25,19 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXP
     os.environ[_v] = "1"
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import baselines  # noqa: E402
 import problems  # noqa: E402
+from machine import machine as bench_machine  # noqa: E402
 
 from azee_mj import ik  # noqa: E402
 from azee_mj.ergonomics import ergonomics  # noqa: E402
@@ -56,29 +54,16 @@ TARGETS = {"success": 0.99, "median_ms": 2.0, "p90_ms": 10.0, "range_violations"
 
 
 def machine() -> dict:
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    return bench_machine(threads_used=1, qpsolvers=_qpsolvers())
+
+
+def _qpsolvers():
     import importlib.metadata as md
 
-    def ver(p):
-        try:
-            return md.version(p)
-        except md.PackageNotFoundError:
-            return None
-
-    return {
-        "cpu": cpu, "cores": os.cpu_count(), "threads_used": 1,
-        "python": platform.python_version(), "mujoco": mujoco.__version__,
-        "numpy": np.__version__, "mink": ver("mink"), "daqp": ver("daqp"),
-        "qpsolvers": ver("qpsolvers"), "platform": platform.platform(),
-        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-    }  # fmt: skip
+    try:
+        return md.version("qpsolvers")
+    except md.PackageNotFoundError:
+        return None
 
 
 def _git() -> str:

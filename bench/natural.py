@@ -55,6 +55,7 @@ from azee_mj.schedule import constraint_tracks, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 from azee_mj.timeline import realize
+from machine import machine
 
 FPS = 50.0
 HOLD = (0.4, 0.8)  # [s] the contact block
@@ -411,35 +412,6 @@ def contact_sheet(path: Path, contacts, postures: dict[str, np.ndarray], recs: d
     tmp = path.with_name(path.name + ".tmp.png")
     sheet.save(tmp)
     tmp.replace(path)
-
-
-def machine() -> dict:
-    """CPU, cores, versions and date of this run."""
-    import datetime
-    import importlib.metadata as md
-    import platform
-
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-
-    def ver(p):
-        try:
-            return md.version(p)
-        except md.PackageNotFoundError:
-            return None
-
-    return {
-        "cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-        "mujoco": mujoco.__version__, "numpy": np.__version__, "mink": ver("mink"),
-        "platform": platform.platform(),
-        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-    }  # fmt: skip
 
 
 def main(argv=None) -> int:

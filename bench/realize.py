@@ -27,6 +27,7 @@ from azee_mj import timeline  # noqa: E402
 from azee_mj.schedule import make_solver  # noqa: E402
 from azee_mj.ergonomics import ergonomics  # noqa: E402
 from azee_mj.score import load_score  # noqa: E402
+from machine import cpu  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SIGNS = ["bien", "pointing", "arbre", "info-about", "penser"]
@@ -115,7 +116,7 @@ def main():
     print(f"{len(mirrorable)} signs left-handed vs the mirror of right-handed: {mirror_mm:.3f} mm")
     out = {
         "left_handed_mirror_mm": mirror_mm,
-        "machine": {"cpu": _cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
+        "machine": {"cpu": cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
                     "mujoco": mujoco.__version__, "numpy": np.__version__},
         "rows": rows,
         "linear_fit": {"seconds_per_score_second": float(fit[0]), "intercept_s": float(fit[1]),
@@ -124,16 +125,6 @@ def main():
     (ROOT / "bench" / "results").mkdir(exist_ok=True)
     (ROOT / "bench" / "results" / "realize.json").write_text(json.dumps(out, indent=1))
     print(f"linear fit: {fit[0]:.3f} s per score second, r2 {out['linear_fit']['r2']:.3f}")
-
-
-def _cpu() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor()
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -222,8 +223,6 @@ def test_sigterm_to_the_command_exits_143_and_leaves_nothing(tmp_path):
 ])
 def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(tmp_path, group, sig,
                                                                       code, message):
-    import time
-
     src = tmp_path / "in"
     src.mkdir()
     _long_score(src / "long.json", copies=300)  # minutes of work for one worker
@@ -234,17 +233,20 @@ def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(tmp_path, 
     p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o",
                           str(out), "--jobs", "2"], env=env, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
-    deadline = time.monotonic() + 120
-    while not (out / "good.npz").exists() and p.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.1)
-    # The long score is being realized in the other worker.
-    if group:
-        os.killpg(p.pid, sig)
-    else:
-        p.send_signal(sig)
-    stdout, err = p.communicate(timeout=60)  # returns once no worker holds the pipes open
+    try:
+        # Wait for good.json's summary line; the long score is then being realized in the
+        # other worker.
+        assert select.select([p.stdout], [], [], 120)[0], "no score finished within 120 s"
+        assert p.stdout.readline().startswith(f"{out / 'good.npz'}: ")
+        if group:
+            os.killpg(p.pid, sig)
+        else:
+            p.send_signal(sig)
+        _, err = p.communicate(timeout=60)  # returns once no worker holds the pipes open
+    finally:
+        if p.poll() is None:  # a failed test leaves no batch running
+            os.killpg(p.pid, signal.SIGKILL)
     assert (p.returncode, err) == (code, message)
-    assert stdout.startswith(f"{out / 'good.npz'}: ")
     assert [x.name for x in out.iterdir()] == ["good.npz"]  # no long.npz, no temporary file
     assert load_rollout(out / "good.npz", load_model().nq).fps == 50.0
 

@@ -2,10 +2,10 @@
 realize, check, preview, render, export, report.
 
 Exit status: 0 done; 1 a check found problems (``check``, or ``realize --strict`` with a
-constraint out of tolerance); 2 bad input (a score, rollout, option or
-output path; one message, no output file); 3 an internal error (a bug: one line asking for
-a report; ``--debug`` shows the traceback); 130 interrupted (Ctrl-C); 143 terminated
-(SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
+constraint out of tolerance); 2 bad input (a score, rollout, option or output path; one
+message, no output file; when realizing several scores, any bad one, the others written);
+3 an internal error (a bug: one line asking for a report; ``--debug`` shows the
+traceback); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
 any work starts (:func:`_outputs`).
 """
 
@@ -40,16 +40,19 @@ def _outputs(args, outputs: tuple[str, ...], inputs: tuple[str, ...],
     directories (see :func:`azee_mj.files.check_output`)."""
     from azee_mj.files import check_output
 
-    given = [getattr(args, k) for k in inputs if getattr(args, k, None)]
-    for d in getattr(args, "lexicon", None) or ():
-        if os.path.isdir(d):
-            given += [p for p in Path(d).iterdir() if p.suffix in (".json", ".azee")]
+    given = [getattr(args, k) for k in inputs if getattr(args, k, None)] + _lexicon_files(args)
     paths = [getattr(args, k) for k in outputs if getattr(args, k, None)]
     for p in paths:
         check_output(p, given, directory=directory)
     real = [os.path.realpath(p) for p in paths]
     if len(set(real)) < len(real):
         raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
+
+
+def _lexicon_files(args) -> list[Path]:
+    """The sign files of the ``--lexicon`` directories (inputs no output may replace)."""
+    return [p for d in getattr(args, "lexicon", None) or () if os.path.isdir(d)
+            for p in Path(d).iterdir() if p.suffix in (".json", ".azee")]  # fmt: skip
 
 
 def _cmd_sites(args) -> int:
@@ -183,6 +186,7 @@ class _Progress:
 
 
 def _cmd_realize(args) -> int:
+    from azee_mj.batch import summary_lines
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
@@ -190,22 +194,65 @@ def _cmd_realize(args) -> int:
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
+    if args.jobs is not None and args.jobs < 1:
+        raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
+    if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
+        return _realize_many(args)
+    args.score = args.score[0]
     _outputs(args, ("output", "report"), ("score",))
     score = load_score(_score_arg(args.score, args))
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
     save_rollout(args.output, rollout, inputs=(args.score,))
     if args.report:
         save_json(args.report, rollout.report(), inputs=(args.score, args.output))
-    s = rollout.stats
-    bad = [t for t in rollout.traces if not t.ok]
-    print(f"{args.output}: {len(rollout.time)} frames at {args.fps:g} fps, {s.problems} IK "
-          f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
-          f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within tolerance")
-    for t in bad[:5]:
-        print(f"  {t.describe()}")
-    if len(bad) > 5:
-        print(f"  ... and {len(bad) - 5} more (see --report)")
-    return 1 if args.strict and bad else 0
+    print("\n".join(summary_lines(args.output, rollout, args.fps)))
+    return 1 if args.strict and any(not t.ok for t in rollout.traces) else 0
+
+
+def _dir_like(path: str) -> bool:
+    """A path written as a directory (``DIR/``)."""
+    return path.endswith(("/", os.sep))
+
+
+def _realize_many(args) -> int:
+    """Several scores (or directories of them) to ``-o DIR/``, one process per core.
+
+    Everything is checked before any score is realized: the output (and ``--report``)
+    directories exist and are writable, no two scores write the same file, and no output is
+    an input. Exit 2 if any score was bad (it outranks ``--strict``), else 1 with
+    ``--strict`` if any score missed a constraint, else 0."""
+    from azee_mj.batch import plan, realize_many, score_files
+    from azee_mj.files import check_output, check_output_dir
+
+    scores = score_files(args.score)
+    lexicon = args.lexicon or ()
+    if any(s.suffix.lower() == ".azee" for s in scores):
+        from azee_mj.azee import Lexicon
+
+        Lexicon(lexicon)  # a bad --lexicon once, not once per expression
+    check_output_dir(args.output)
+    if args.report:
+        check_output_dir(args.report)
+    jobs = plan(scores, Path(args.output), Path(args.report) if args.report else None)
+    inputs = [*scores, *_lexicon_files(args)]
+    for j in jobs:
+        for out in (j.output, j.report):
+            if out is not None:
+                check_output(out, inputs)
+    bar = _Progress(f"realize {len(jobs)} scores")
+
+    def done(o, n):
+        if o.ok:
+            print("\n".join(o.lines), flush=True)
+        else:
+            print(f"azee-mj: error: {printable(o.error)}", file=sys.stderr, flush=True)
+        bar(n / len(jobs))
+
+    outcomes = realize_many(jobs, fps=args.fps, mode=args.mode, workers=args.jobs,
+                            lexicon=lexicon, on_done=done)  # fmt: skip
+    if not all(o.ok for o in outcomes):
+        return EXIT_BAD_INPUT
+    return EXIT_FINDINGS if args.strict and any(o.missed for o in outcomes) else EXIT_OK
 
 
 def load_clip(
@@ -267,7 +314,8 @@ def _cmd_render(args) -> int:
     _outputs(args, ("output",), ("input", "score"))
     clip = _clip(args)
     out = render(clip, args.output, camera=args.camera, size=size, fps=args.fps,
-                 time=args.time, targets=args.targets, progress=_Progress("render"))  # fmt: skip
+                 time=args.time, targets=args.targets, antialias=not args.no_antialias,
+                 progress=_Progress("render"))  # fmt: skip
     print(f"{out}: written")
     return 0
 
@@ -325,15 +373,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_lexicon(u)
     u.set_defaults(func=_cmd_rules)
 
-    r = sub.add_parser("realize", help="realize a score to a rollout .npz")
-    r.add_argument("score", help="SCORE.json (azee-score version 1) or EXPR.azee")
-    r.add_argument("-o", "--output", required=True, help="OUT.npz")
+    r = sub.add_parser("realize", help="realize a score to a rollout .npz (or many to DIR/)")
+    r.add_argument("score", nargs="+", metavar="SCORE",
+                   help="SCORE.json (azee-score version 1) or EXPR.azee; several, or a "
+                   "directory of them (*.json, *.azee), are realized in parallel to -o DIR/")
+    r.add_argument("-o", "--output", required=True,
+                   help="OUT.npz, or an existing DIR/ for NAME.npz of each score")
     r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
     r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
                    help="blocks per articulator track (default) or the 2018 flattened method")
-    r.add_argument("--report", help="also write residuals and timings to REPORT.json")
+    r.add_argument("--report", help="also write residuals and timings to REPORT.json "
+                   "(an existing DIR/ for several scores)")
     r.add_argument("--strict", action="store_true",
                    help="exit 1 if any constraint is not met (default: 0, and say why)")
+    r.add_argument("--jobs", type=int, help="processes for several scores (default: one per "
+                   "usable core)")
     _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)
 
@@ -369,6 +423,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--time", type=float, help="for .png: the frame at T seconds (default: a "
                    "contact sheet of the key postures)")
     w.add_argument("--targets", action="store_true", help="draw constraint targets")
+    w.add_argument("--no-antialias", action="store_true", help="no multisampling: about twice "
+                   "as fast in software GL, with jagged edges")
     w.set_defaults(func=_cmd_render)
 
     e = sub.add_parser("export", help="export a score or rollout to .glb, .gltf, .bvh, .pose, "

@@ -85,6 +85,16 @@ def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = 
     return target
 
 
+def check_output_dir(path: str | os.PathLike) -> Path:
+    """The existing directory ``path`` (symlinks resolved) that outputs will be written into,
+    after checking it is a writable directory; raise :class:`~azee_mj.errors.OutputError`
+    otherwise. Unlike ``check_output(..., directory=True)``, which accepts a directory yet
+    to be made in a writable parent, it must exist, as a single output's directory must."""
+    if not os.path.exists(os.path.realpath(path)):  # 'FILE/' is a file, not missing
+        raise OutputError(f"{_shown(path)}: the directory does not exist")
+    return check_output(path, directory=True)
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str = "",
                 inputs: Iterable[str | os.PathLike] = ()):  # fmt: skip

@@ -8,6 +8,7 @@ first time something renders. Units: metres, seconds.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import subprocess
@@ -32,6 +33,12 @@ GL_BACKENDS = ("egl", "osmesa")
 DEFAULT_SIZE = (640, 480)
 #: Shadow map size of offscreen renders [px].
 SHADOW_SIZE = 1024
+#: Tessellation of capsules, spheres and ellipsoids in offscreen renders: (slices, stacks).
+TESSELLATION = (16, 10)
+#: Multisampling of offscreen renders (samples per pixel) with and without antialiasing.
+SAMPLES = {True: 4, False: 0}
+#: Encoded frames waiting for the encoder thread, at most.
+QUEUE_FRAMES = 8
 
 RENDER_HINT = "pip install azee_mj[render]"
 
@@ -106,14 +113,19 @@ def gl_backend(probe: Callable[[str], bool] | None = None) -> str:
 # ---------------------------------------------------------------------------------------
 
 
-def scene_model(width: int = 0, height: int = 0) -> mujoco.MjModel:
+def scene_model(width: int = 0, height: int = 0, *, antialias: bool = True) -> mujoco.MjModel:
     """The signer on its floor with lights and cameras, with room for a ``width`` x
-    ``height`` offscreen buffer."""
+    ``height`` offscreen buffer, set up for software GL (see docs/rendering.md)."""
     m = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
     m.vis.global_.offwidth = max(m.vis.global_.offwidth, width)
     m.vis.global_.offheight = max(m.vis.global_.offheight, height)
-    # A 1024 shadow map looks the same at these sizes and renders 2x faster in software GL.
-    m.vis.quality.shadowsize = min(m.vis.quality.shadowsize, SHADOW_SIZE)
+    q = m.vis.quality
+    # Each looks the same at these sizes and costs less in software GL: a 1024 shadow map
+    # (not 4096), and 16 x 10 facets per round geom (not 28 x 16; every geom is drawn in
+    # several passes a frame, for the shadow map and the lights).
+    q.shadowsize = min(q.shadowsize, SHADOW_SIZE)
+    q.numslices, q.numstacks = min(q.numslices, TESSELLATION[0]), min(q.numstacks, TESSELLATION[1])
+    q.offsamples = min(q.offsamples, SAMPLES[antialias])
     return m
 
 
@@ -139,13 +151,16 @@ def resample(clip: Clip, fps: float) -> tuple[np.ndarray, np.ndarray]:
 
 class FrameRenderer:
     """Renders postures of the signer offscreen from one camera (a ``mujoco.Renderer`` on
-    ``scene.xml``); ``targets`` adds the constraint markers. Use as a context manager."""
+    ``scene.xml``, reused for every frame); ``targets`` adds the constraint markers,
+    ``antialias=False`` turns multisampling off (about twice as fast in software GL, with
+    jagged edges). Use as a context manager."""
 
     def __init__(self, clip: Clip, *, camera: str = "front", size=DEFAULT_SIZE,
-                 targets: bool = False):  # fmt: skip
+                 targets: bool = False, antialias: bool = True):  # fmt: skip
         gl_backend()
         w, h = size
-        self.model = scene_model(w, h)
+        self.size = (w, h)
+        self.model = scene_model(w, h, antialias=antialias)
         self.cam = camera_id(self.model, camera)
         self.data = mujoco.MjData(self.model)
         self.clip = clip
@@ -155,9 +170,14 @@ class FrameRenderer:
             self.r = mujoco.Renderer(self.model, height=h, width=w)
         except Exception as e:  # noqa: BLE001  (GL errors come in several types)
             raise AzeeError(f"offscreen rendering failed with MUJOCO_GL={_BACKEND}: {e}") from None
+        # The floor's mirror image of the signer (reflectance 0.1) cannot be seen from the
+        # fixed cameras, and drawing it costs a whole extra pass of the scene.
+        self.r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
 
-    def render(self, q: np.ndarray, frame: int | None = None) -> np.ndarray:
-        """(H, W, 3) uint8 image of posture ``q``; markers of clip frame ``frame`` if any."""
+    def render(self, q: np.ndarray, frame: int | None = None,
+               out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """(H, W, 3) uint8 image of posture ``q`` (written into ``out`` if given); markers of
+        clip frame ``frame`` if any."""
         d = self.data
         items = []
         if self.decorate and frame is not None:
@@ -167,7 +187,7 @@ class FrameRenderer:
         self.r.update_scene(d, camera=self.cam)
         if items:
             add_markers(self.r.scene, items)
-        return self.r.render().copy()
+        return self.r.render(out=out)
 
     def close(self) -> None:
         self.r.close()
@@ -245,12 +265,15 @@ def render(
     fps: float | None = None,
     time: float | None = None,
     targets: bool = False,
+    antialias: bool = True,
     progress: Callable[[float], None] | None = None,
 ) -> Path:
     """Render ``clip`` to ``out`` by its suffix, atomically.
 
     ``.mp4`` / ``.gif``: the video at ``fps`` (default: the clip's). ``.png``: the frame at
     ``time`` [s], or without it a contact sheet of :func:`key_frames`, labelled.
+    ``antialias=False`` renders without multisampling: about twice as fast in software GL,
+    with visibly jagged edges. Video frames are encoded in a thread while the next renders.
     Raises :class:`AzeeError` for bad options (before anything is written).
     """
     from azee_mj.files import atomic_path
@@ -268,7 +291,8 @@ def render(
         _need("imageio_ffmpeg")
     imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
     pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
-    with FrameRenderer(clip, camera=camera, size=size, targets=targets) as fr:
+    with FrameRenderer(clip, camera=camera, size=size, targets=targets,
+                       antialias=antialias) as fr:  # fmt: skip
         if suffix == ".png":
             if time is not None:
                 f = clip.frame_at(time)
@@ -283,15 +307,14 @@ def render(
         times, qs = resample(clip, vfps)
         with atomic_path(out) as tmp:
             if suffix == ".mp4":
+                # x264's veryfast preset: half the encoding CPU of its default, same quality.
                 w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264",
-                                       quality=7, macro_block_size=2,
-                                       ffmpeg_log_level="error")  # fmt: skip
-                try:
+                                       quality=7, macro_block_size=2, ffmpeg_log_level="error",
+                                       output_params=["-preset", "veryfast"])  # fmt: skip
+                with Encoder(w.append_data, (size[1], size[0], 3), close=w.close) as enc:
                     for k, q in enumerate(qs):
-                        w.append_data(fr.render(q, clip.frame_at(times[k])))
+                        enc.put(fr.render(q, clip.frame_at(times[k]), out=enc.buffer()))
                         tick((k + 1) / len(qs))
-                finally:
-                    w.close()
             else:
                 frames = []
                 quantize = pil.Quantize.MEDIANCUT
@@ -302,6 +325,68 @@ def render(
                 frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
                                duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
     return out
+
+
+class Encoder:
+    """Feeds frames to ``write`` (e.g. a video writer's ``append_data``) in a thread, so
+    encoding overlaps rendering. Frames go through a bounded queue in reused buffers of
+    ``shape`` (uint8): :meth:`buffer` hands out a free one (waiting while ``queue`` frames
+    are in flight), :meth:`put` queues it. Leaving the ``with`` block waits for the last
+    frame and calls ``close``; an error of ``write`` is raised in the caller's thread."""
+
+    def __init__(self, write: Callable[[np.ndarray], Any], shape: tuple[int, ...],
+                 close: Callable[[], Any] | None = None, queue: int = QUEUE_FRAMES):  # fmt: skip
+        import queue as q
+        import threading
+
+        self._write, self._close = write, close
+        self._todo: q.Queue = q.Queue(maxsize=queue)
+        self._free: q.Queue = q.Queue()
+        for _ in range(queue + 2):
+            self._free.put(np.empty(shape, np.uint8))
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="azee-mj encoder", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while (frame := self._todo.get()) is not None:
+            if self._error is None:
+                try:
+                    self._write(frame)
+                except BaseException as e:  # noqa: BLE001  (re-raised in the caller)
+                    self._error = e
+            self._free.put(frame)
+
+    def buffer(self) -> np.ndarray:
+        """A free frame buffer to render into."""
+        self._raise()
+        return self._free.get()
+
+    def put(self, frame: np.ndarray) -> None:
+        """Queue ``frame`` (a buffer from :meth:`buffer`) for writing."""
+        self._raise()
+        self._todo.put(frame)
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._todo.put(None)
+        self._thread.join()
+        if exc[0] is not None:  # failing, interrupted or terminated: that error wins
+            with contextlib.suppress(Exception):
+                if self._close is not None:
+                    self._close()
+            return
+        try:
+            if self._close is not None:
+                self._close()
+        finally:
+            self._raise()
 
 
 def _contact_sheet(fr: FrameRenderer, clip: Clip, size, tick):

@@ -112,3 +112,153 @@ def test_check_exit_codes(tmp_path, capsys):
 def test_realize_rejects_a_bad_fps(tmp_path, capsys):
     assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"), "--fps", "0"]) == 2
     assert capsys.readouterr().err == "azee-mj: error: --fps must be a number from 1 to 1000, got 0\n"
+
+
+def _same_rollout(a, b):
+    """The same file byte for byte (rollout files hold no wall-clock times)."""
+    assert a.read_bytes() == b.read_bytes()
+
+
+def _dirs(tmp_path, *names):
+    out = [tmp_path / n for n in names]
+    for d in out:
+        d.mkdir()
+    return out
+
+
+def test_realize_many_scores_in_parallel_matches_each_alone(tmp_path, capsys):
+    scores = [DATA / "good.json", DATA / "kinds.json"]
+    alone, out, reports = _dirs(tmp_path, "alone", "many", "reports")
+    for s in scores:
+        assert main(["realize", str(s), "-o", str(alone / f"{s.stem}.npz"), "--fps", "25"]) == 0
+    capsys.readouterr()
+    assert main(["realize", *map(str, scores), "-o", f"{out}/", "--fps", "25",
+                 "--jobs", "2", "--report", str(reports)]) == 0
+    text = capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
+    for s in scores:
+        _same_rollout(alone / f"{s.stem}.npz", out / f"{s.stem}.npz")
+        assert f"{out / s.stem}.npz: " in text
+    assert "3/3 constraints within tolerance" in text
+    report = json.loads((reports / "good.json").read_text())
+    assert report["all_within_tolerance"] is True
+
+
+def test_realize_many_reports_each_bad_score_and_finishes_the_others(tmp_path, capsys):
+    bad = _bad_score(tmp_path)
+    (out,) = _dirs(tmp_path, "out")
+    assert main(["realize", str(DATA / "good.json"), str(bad), str(DATA / "kinds.json"),
+                 "-o", str(out), "--fps", "25", "--jobs", "2"]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == (f"azee-mj: error: {bad}: GOOD.K1: constraint 1 (place): unknown "
+                            "site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj sites lists "
+                            "all)\n")
+    assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
+    assert captured.out.count("constraints within tolerance") == 2
+
+
+def test_realize_a_directory_of_scores_and_expressions(tmp_path, capsys):
+    src, out, empty = _dirs(tmp_path, "scores", "out", "empty")
+    for name in ("good.json", "kinds.json"):
+        (src / name).write_text((DATA / name).read_text())
+    (src / "five.azee").write_text(":nb-5\n")
+    (src / "notes.txt").write_text("not a score")
+    assert main(["realize", str(src), "-o", str(out), "--fps", "25", "--jobs", "1"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["five.npz", "good.npz", "kinds.npz"]
+    for stem, score in (("good", DATA / "good.json"), ("five", src / "five.azee")):
+        single = tmp_path / f"{stem}.npz"
+        assert main(["realize", str(score), "-o", str(single), "--fps", "25"]) == 0
+        _same_rollout(single, out / f"{stem}.npz")
+    capsys.readouterr()
+    assert main(["realize", str(empty), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {empty}: no *.json or *.azee scores "
+                                       "in this directory\n")
+
+
+def test_realize_many_compiles_expressions_with_the_lexicon(tmp_path, capsys):
+    lex, out = _dirs(tmp_path, "signs", "out")
+    (lex / "hello.azee").write_text(":seq(:bien, :nb-5)\n")
+    src = tmp_path / "x.azee"
+    src.write_text(":hello\n")
+    single = tmp_path / "x.npz"
+    assert main(["realize", str(src), "-o", str(single), "--fps", "10", "--lexicon",
+                 str(lex)]) == 0
+    assert main(["realize", str(src), str(DATA / "good.json"), "-o", str(out), "--fps", "10",
+                 "--lexicon", str(lex), "--jobs", "2"]) == 0
+    _same_rollout(single, out / "x.npz")
+    capsys.readouterr()
+    # Without the lexicon the sign is unknown: that expression fails, naming its file.
+    assert main(["realize", str(src), str(DATA / "good.json"), "-o", str(out), "--fps",
+                 "10", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"azee-mj: error: {src}:1:1: ") and "hello" in err
+    assert err.count("\n") == 1
+    missing = tmp_path / "nope"
+    assert main(["realize", str(src), str(DATA / "good.json"), "-o", str(out),
+                 "--lexicon", str(missing)]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {missing}: not a directory of signs "
+                                       "(--lexicon)\n")
+
+
+def test_realize_many_rejects_clashing_names_and_bad_jobs(tmp_path, capsys):
+    other = tmp_path / "good.json"
+    other.write_text((DATA / "good.json").read_text())
+    (out,) = _dirs(tmp_path, "o")
+    assert main(["realize", str(DATA / "good.json"), str(other), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {DATA / 'good.json'} and {other} would "
+                                       f"both write {out / 'good.npz'}; rename one\n")
+    assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"),
+                 "--jobs", "0"]) == 2
+    assert capsys.readouterr().err == "azee-mj: error: --jobs must be at least 1, got 0\n"
+    assert list(out.iterdir()) == []
+
+
+def test_realize_many_follows_the_output_rule_before_any_work(tmp_path, capsys):
+    scores = [str(DATA / "good.json"), str(DATA / "kinds.json")]
+    src, out = _dirs(tmp_path, "src", "out")
+    (src / "good.json").write_text((DATA / "good.json").read_text())
+    f = tmp_path / "file.npz"
+    f.write_text("x")
+    missing = tmp_path / "missing"
+    cases = [
+        ([*scores, "-o", f"{missing}/"], f"{missing}/: the directory does not exist"),
+        ([DATA / "good.json", "-o", f"{missing}/"], f"{missing}/: the directory does not exist"),
+        ([*scores, "-o", str(missing)], f"{missing}: the directory does not exist"),
+        ([*scores, "-o", str(f)], f"{f}: exists and is not a directory"),
+        ([*scores, "-o", f"{f}/"], f"{f}/: exists and is not a directory"),
+        ([*scores, "-o", str(out), "--report", f"{missing}/"],
+         f"{missing}/: the directory does not exist"),
+        # a report would replace the input src/good.json
+        ([src, "-o", str(out), "--report", str(src)],
+         f"{src / 'good.json'}: is also an input ({src / 'good.json'}); write to another file"),
+    ]
+    for argv, message in cases:
+        assert main(["realize", *map(str, argv)]) == 2, message
+        assert capsys.readouterr().err == f"azee-mj: error: {message}\n"
+    (out / "kinds.npz").mkdir()
+    assert main(["realize", *scores, "-o", str(out)]) == 2
+    assert capsys.readouterr().err == (f"azee-mj: error: {out / 'kinds.npz'}: is a directory; "
+                                       "give a file name\n")
+    assert [p.name for p in out.iterdir()] == ["kinds.npz"]
+    assert (src / "good.json").read_text() == (DATA / "good.json").read_text()
+
+
+def test_realize_one_score_to_a_directory(tmp_path, capsys):
+    (out,) = _dirs(tmp_path, "out")
+    assert main(["realize", str(DATA / "good.json"), "-o", f"{out}/", "--fps", "25"]) == 0
+    assert capsys.readouterr().out.startswith(f"{out / 'good.npz'}: 31 frames at 25 fps, ")
+    assert [p.name for p in out.iterdir()] == ["good.npz"]
+
+
+def test_realize_many_strict_exits_1_on_a_miss_and_2_on_a_bad_score(tmp_path, capsys):
+    far = tmp_path / "far.json"  # a wrist target 1.2 m in front of the signing space
+    far.write_text(json.dumps({"format": "azee-score", "version": 1, "root": {
+        "name": "FAR", "kind": "cstr", "start": 0, "end": 0.5, "constraints": [
+            {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [1.2, 0, 0]}}]}}))
+    (out,) = _dirs(tmp_path, "out")
+    both = [str(far), str(DATA / "good.json"), "-o", str(out), "--fps", "10", "--jobs", "1"]
+    assert main(["realize", *both]) == 0
+    assert main(["realize", *both, "--strict"]) == 1
+    text = capsys.readouterr().out
+    assert "  FAR constraint 1 (place): worst " in text and ": out of reach by " in text
+    assert main(["realize", str(_bad_score(tmp_path)), *both, "--strict"]) == 2

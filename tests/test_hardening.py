@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -190,17 +191,22 @@ def test_sigterm_while_writing_removes_the_temporary_file(tmp_path):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def _long_score(path: Path, copies: int = 60) -> Path:
+    """``copies`` armoire signs in a row (60: a score that takes tens of seconds to realize)."""
+    score = json.loads((ROOT / "examples" / "armoire.json").read_text())
+    kids = []
+    for i in range(copies):
+        r = dict(score["root"], name=f"S{i}", start=3.5 * i, end=3.5 * i + score["root"]["end"])
+        kids.append(r)
+    path.write_text(json.dumps({"format": "azee-score", "version": 1, "root": {
+        "name": "L", "kind": "sync", "start": 0, "end": 3.5 * copies, "children": kids}}))
+    return path
+
+
 def test_sigterm_to_the_command_exits_143_and_leaves_nothing(tmp_path):
     import time
 
-    score = json.loads((ROOT / "examples" / "armoire.json").read_text())
-    kids = []
-    for i in range(60):  # a score that takes tens of seconds to realize
-        r = dict(score["root"], name=f"S{i}", start=3.5 * i, end=3.5 * i + score["root"]["end"])
-        kids.append(r)
-    src = tmp_path / "long.json"
-    src.write_text(json.dumps({"format": "azee-score", "version": 1, "root": {
-        "name": "L", "kind": "sync", "start": 0, "end": 3.5 * 60, "children": kids}}))
+    src = _long_score(tmp_path / "long.json")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o",
                           str(tmp_path / "o.npz")], env=env, stderr=subprocess.PIPE, text=True)
@@ -209,6 +215,40 @@ def test_sigterm_to_the_command_exits_143_and_leaves_nothing(tmp_path):
     _, err = p.communicate(timeout=60)
     assert (p.returncode, err) == (143, "azee-mj: terminated\n")
     assert [x.name for x in tmp_path.iterdir()] == ["long.json"]
+
+
+@pytest.mark.parametrize("group, sig, code, message", [
+    (False, signal.SIGTERM, 143, "azee-mj: terminated\n"),  # to the command only
+    (True, signal.SIGINT, 130, "azee-mj: interrupted\n"),  # Ctrl-C: to the process group
+])
+def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(tmp_path, group, sig,
+                                                                      code, message):
+    src = tmp_path / "in"
+    src.mkdir()
+    _long_score(src / "long.json", copies=300)  # minutes of work for one worker
+    (src / "good.json").write_text(GOOD.read_text())
+    out = tmp_path / "out"
+    out.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o",
+                          str(out), "--jobs", "2"], env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+    try:
+        # Wait for good.json's summary line; the long score is then being realized in the
+        # other worker.
+        assert select.select([p.stdout], [], [], 120)[0], "no score finished within 120 s"
+        assert p.stdout.readline().startswith(f"{out / 'good.npz'}: ")
+        if group:
+            os.killpg(p.pid, sig)
+        else:
+            p.send_signal(sig)
+        _, err = p.communicate(timeout=60)  # returns once no worker holds the pipes open
+    finally:
+        if p.poll() is None:  # a failed test leaves no batch running
+            os.killpg(p.pid, signal.SIGKILL)
+    assert (p.returncode, err) == (code, message)
+    assert [x.name for x in out.iterdir()] == ["good.npz"]  # no long.npz, no temporary file
+    assert load_rollout(out / "good.npz", load_model().nq).fps == 50.0
 
 
 # ---------------------------------------------------------------------------------------

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -184,6 +185,87 @@ def test_mp4_has_the_expected_frames_and_duration(clip, gl, tmp_path):
     assert meta["fps"] == pytest.approx(25)
     assert meta["duration"] == pytest.approx(n / 25, abs=0.05)
     assert np.abs(frames[0].astype(float) - frames[n // 2]).mean() > 0.5
+
+
+def test_software_gl_settings_look_like_the_full_quality_scene(clip, gl):
+    """16 x 10 facets and no floor reflection against scene.xml's 28 x 16 facets and
+    reflection (both with a 1024 shadow map): the same picture up to a few edge pixels, from
+    every camera."""
+    f = clip.frame_at(0.6)
+    full = mujoco.MjModel.from_xml_path(str(rd.SCENE_PATH))
+    full.vis.quality.shadowsize = rd.SHADOW_SIZE
+    d = mujoco.MjData(full)
+    d.qpos[:] = clip.qpos[f]
+    mujoco.mj_forward(full, d)
+    with mujoco.Renderer(full, height=240, width=320) as ref, \
+            rd.FrameRenderer(clip, size=(320, 240)) as fr:  # fmt: skip
+        for cam in rd.CAMERAS:
+            fr.cam = rd.camera_id(fr.model, cam)
+            ref.update_scene(d, camera=cam)
+            diff = np.abs(ref.render().astype(float) - fr.render(clip.qpos[f]))
+            assert diff.mean() < 1.0, cam  # of 255 levels
+            assert (diff.max(axis=2) > 32).mean() < 0.01, cam  # under 1 % of the pixels
+
+
+def test_encoder_writes_every_frame_in_order_and_raises_writer_errors():
+    written = []
+    with rd.Encoder(lambda a: written.append(int(a[0, 0, 0])), (2, 2, 3), queue=2) as enc:
+        for k in range(20):
+            buf = enc.buffer()
+            buf[:] = k
+            enc.put(buf)
+    assert written == list(range(20))
+
+    def fail(a):
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"), rd.Encoder(fail, (2, 2, 3), queue=2) as enc:
+        for _ in range(20):
+            enc.put(enc.buffer())
+
+    def broken_close():
+        raise BrokenPipeError("the encoder is gone")
+
+    # Stopped from outside (Ctrl-C, SIGTERM, a render error): that error wins over close's.
+    with pytest.raises(KeyboardInterrupt), rd.Encoder(written.append, (2, 2, 3),
+                                                      close=broken_close) as enc:  # fmt: skip
+        enc.put(enc.buffer())
+        raise KeyboardInterrupt
+
+
+def test_sigterm_while_encoding_an_mp4_exits_143_and_leaves_nothing(rollout, gl, tmp_path):
+    from azee_mj.rollout_io import save_rollout
+
+    src = tmp_path / "good.npz"
+    save_rollout(src, rollout)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "render", str(src), "-o",
+                          str(tmp_path / "o.mp4"), "--fps", "240"], env=env,
+                         stderr=subprocess.PIPE, text=True)  # fmt: skip
+    deadline = time.monotonic() + 120
+
+    def encoding() -> bool:  # the temporary video has data: frames are going through ffmpeg
+        tmp = [f for f in tmp_path.iterdir() if f.name.startswith(".o.mp4.")]
+        return any(os.path.getsize(f) > 0 for f in tmp if f.exists())
+
+    while not encoding() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert p.poll() is None, "rendering ended before it could be stopped"
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert (p.returncode, err) == (143, "azee-mj: terminated\n")
+    assert [f.name for f in tmp_path.iterdir()] == ["good.npz"]
+
+
+def test_mp4_frames_are_the_rendered_frames(clip, gl, tmp_path):
+    import imageio.v3 as iio
+
+    out = tmp_path / "g.mp4"
+    rd.render(clip, out, size=SMALL)
+    video = iio.imread(out, plugin="FFMPEG").astype(float)
+    with rd.FrameRenderer(clip, size=SMALL) as fr:
+        for k in (0, len(clip.qpos) // 2, len(clip.qpos) - 1):
+            assert np.abs(video[k] - fr.render(clip.qpos[k])).mean() < 3.0  # H.264 loss
 
 
 def test_gif_frames_and_timing(clip, gl, tmp_path):

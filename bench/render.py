@@ -1,0 +1,157 @@
+"""Offscreen rendering speed: frames per second of 640x480 MP4 renders, end to end.
+
+    MUJOCO_GL=egl python bench/render.py [--runs 3] [--examples bien arbre pointing]
+
+Each example is realized once (not timed), then rendered to an .mp4 at its own 50 fps with
+three settings, interleaved in every run so that they share the machine's load:
+
+- ``before``: the settings and loop this package used before issue 11 (scene.xml's 28 x 16
+  facets, floor reflection, 1024 shadow map, 4x multisampling; each frame copied, then
+  written to the encoder in the rendering thread);
+- ``default``: :func:`azee_mj.render.render` as it is now (16 x 10 facets, no reflection,
+  frames encoded in a thread);
+- ``no-antialias``: the same with ``antialias=False``.
+
+Reports the median over runs of frames per second (wall clock, from opening the renderer to
+the closed file) and of CPU time per frame (this process's threads plus the encoder
+subprocess), and writes bench/results/render.json. The target (issue 11): at least 20 frames
+per second at 640x480.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from azee_mj import render as rd
+from azee_mj.cli import load_clip
+
+ROOT = Path(__file__).resolve().parent.parent
+SIZE = (640, 480)
+
+
+def render_before(clip, out: Path) -> None:
+    """The MP4 loop and scene settings of the package before issue 11, for comparison."""
+    import imageio.v2 as imageio
+
+    w, h = SIZE
+    m = mujoco.MjModel.from_xml_path(str(rd.SCENE_PATH))
+    m.vis.global_.offwidth, m.vis.global_.offheight = max(m.vis.global_.offwidth, w), max(
+        m.vis.global_.offheight, h)
+    m.vis.quality.shadowsize = min(m.vis.quality.shadowsize, 1024)
+    d = mujoco.MjData(m)
+    cam = rd.camera_id(m, "front")
+    with mujoco.Renderer(m, height=h, width=w) as r:
+        writer = imageio.get_writer(out, format="FFMPEG", fps=clip.fps, codec="libx264",
+                                    quality=7, macro_block_size=2, ffmpeg_log_level="error")
+        try:
+            for q in clip.qpos:
+                d.qpos[:] = q
+                mujoco.mj_forward(m, d)
+                r.update_scene(d, camera=cam)
+                writer.append_data(r.render().copy())
+        finally:
+            writer.close()
+
+
+VARIANTS = {
+    "before": render_before,
+    "default": lambda clip, out: rd.render(clip, out, size=SIZE),
+    "no-antialias": lambda clip, out: rd.render(clip, out, size=SIZE, antialias=False),
+}
+
+
+def cpu_seconds() -> float:
+    """CPU time of this process (all threads) and of its finished children [s]."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def measure(fn, clip, tmp: Path) -> tuple[float, float]:
+    """(frames per second, CPU seconds per frame) of one render of ``clip``."""
+    out = tmp / "bench.mp4"
+    c0, t0 = cpu_seconds(), time.perf_counter()
+    fn(clip, out)
+    wall, cpu = time.perf_counter() - t0, cpu_seconds() - c0
+    out.unlink()
+    n = len(clip.qpos)
+    return n / wall, cpu / n
+
+
+def gl_renderer() -> str:
+    """The OpenGL renderer string (e.g. llvmpipe for Mesa's software rasterizer)."""
+    rd.gl_backend()
+    m = rd.scene_model(64, 64)
+    with mujoco.Renderer(m, height=64, width=64) as r:
+        r.render()
+        try:
+            from OpenGL import GL
+
+            return GL.glGetString(GL.GL_RENDERER).decode()
+        except Exception as e:  # noqa: BLE001  (report, don't fail the benchmark)
+            return f"unknown ({e})"
+
+
+def machine() -> dict:
+    lines = Path("/proc/cpuinfo").read_text().splitlines()
+    cpu = next((x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
+               platform.processor())  # fmt: skip
+    return {"cpu": cpu, "cores": len(os.sched_getaffinity(0)), "load_average": os.getloadavg(),
+            "python": platform.python_version(), "mujoco": mujoco.__version__,
+            "MUJOCO_GL": rd.gl_backend(), "gl_renderer": gl_renderer()}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--examples", nargs="+", default=["bien", "arbre", "pointing"])
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "render.json"))
+    args = ap.parse_args()
+    info = machine()
+    clips = {n: load_clip(ROOT / "examples" / f"{n}.json") for n in args.examples}
+    samples: dict[str, dict[str, list]] = {v: {"fps": [], "cpu": []} for v in VARIANTS}
+    with tempfile.TemporaryDirectory() as tmp:
+        for run in range(args.runs):
+            for v, fn in VARIANTS.items():
+                frames, wall, cpu = 0, 0.0, 0.0
+                for clip in clips.values():
+                    fps, cpf = measure(fn, clip, Path(tmp))
+                    n = len(clip.qpos)
+                    frames, wall, cpu = frames + n, wall + n / fps, cpu + cpf * n
+                samples[v]["fps"].append(frames / wall)
+                samples[v]["cpu"].append(cpu / frames)
+                print(f"run {run + 1}: {v:13s} {frames / wall:5.1f} fps, "
+                      f"{1e3 * cpu / frames:6.1f} ms CPU a frame", flush=True)
+    info["load_average_after"] = os.getloadavg()
+    result = {"machine": info, "size": SIZE, "examples": args.examples, "runs": args.runs,
+              "frames": int(sum(len(c.qpos) for c in clips.values())), "variants": {}}  # fmt: skip
+    base = statistics.median(samples["before"]["fps"])
+    for v, s in samples.items():
+        fps, cpu = statistics.median(s["fps"]), statistics.median(s["cpu"])
+        result["variants"][v] = {"fps_median": fps, "fps_runs": s["fps"],
+                                 "cpu_ms_per_frame_median": 1e3 * cpu,
+                                 "speedup_vs_before": fps / base}  # fmt: skip
+    print(json.dumps(result, indent=1))
+    Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+    print("| settings | frames per second (median) | runs | CPU per frame [ms] | vs before |")
+    print("| --- | --- | --- | --- | --- |")
+    for v, r in result["variants"].items():
+        runs = ", ".join(f"{x:.1f}" for x in r["fps_runs"])
+        print(f"| {v} | {r['fps_median']:.1f} | {runs} | {r['cpu_ms_per_frame_median']:.0f} | "
+              f"{r['speedup_vs_before']:.2f}x |")
+
+
+if __name__ == "__main__":
+    np.set_printoptions(precision=3)
+    main()

@@ -191,9 +191,17 @@ class Motion:
             if not cons:
                 if tracks and self.penetrates(q[f], t):
                     # A blend that would pass through the body: push it out, staying close.
-                    free = {j for tr in tracks for j in self.track_joints[tr]}
+                    free = {j for tr in sorted(tracks) for j in self.track_joints[tr]}
                     soft = self.soft_targets(q[f], free)
-                    q[f] = self.solve(soft, sorted(free), q[f], t, max_change=self.frame_step,
+                    q0 = q[f].copy()
+                    if f > 0:
+                        # from half a step toward the curve from the frame before, moving at
+                        # most half a step more: consecutive pushed frames cannot zig-zag
+                        dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
+                        q0[dofs] = np.clip(q[f][dofs], q[f - 1][dofs] - self.frame_step,
+                                           q[f - 1][dofs] + self.frame_step)
+                        q0[dofs] = q[f - 1][dofs] + 0.5 * (q0[dofs] - q[f - 1][dofs])
+                    q[f] = self.solve(soft, sorted(free), q0, t, max_change=0.5 * self.frame_step,
                                       restarts=0).qpos  # fmt: skip
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}

@@ -288,3 +288,18 @@ def test_the_bundled_signer_mirrors(solver):
     q = _posture(solver.model, 7)
     assert not np.array_equal(jm(q), q)
     np.testing.assert_array_equal(jm(jm(q)), q)
+
+
+def test_a_blend_pushed_out_of_the_body_stays_under_25_rad_per_s(solver):
+    # The flat palm to the other elbow: the blend from rest passes through the body and is
+    # pushed out frame by frame, each frame within a step of the one before.
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "C", "kind": "sync", "start": 0, "end": 0.8, "children": [
+            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
+                {"type": "morph", "id": "flat", "weight": 1, "side": "s"}]},
+            {"name": "K", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": [
+                {"type": "place", "site": "@PA(s)", "at": "@EL(w)"}]}]}}
+    rollout = timeline.realize(score, solver=solver)
+    assert all(t.ok for t in rollout.traces)
+    assert np.abs(np.diff(rollout.qpos, axis=0)).max() * rollout.fps <= 25.0

@@ -499,9 +499,12 @@ READY = "window.azeePlayer && azeePlayer.ready && azeePlayer.frames > azeePlayer
 
 def test_player_loads_without_error_and_the_animation_advances(browser, page):
     browser.events.clear()
-    browser.open(_url(page, "t=0.2"), READY)
+    # Paused while it loads (a slow load would otherwise loop the 2.4 s clip), then played.
+    browser.open(_url(page, "t=0.2&paused=1"), READY)
     t0 = browser.evaluate("azeePlayer.time()")
-    assert t0 >= 0.2 and browser.evaluate("azeePlayer.playing()") is True
+    assert t0 == pytest.approx(0.2) and browser.evaluate("azeePlayer.playing()") is False
+    browser.evaluate("azeePlayer.play()")
+    assert browser.evaluate("azeePlayer.playing()") is True
     browser.open_wait(f"azeePlayer.time() > {t0} + 0.2")  # a TimeoutError if it stands still
     assert browser.errors() == []
 

@@ -396,13 +396,6 @@ class Solver:
         q, nat, n_it = self._polish(run.q, plan, history)
         return Attempt(q, (0, nat), iters + n_it)
 
-    def _natural(self, plan: Plan) -> tuple[np.ndarray, np.ndarray]:
-        """Naturalness rows (effort, comfort, preferences) and their Jacobian over the free
-        dofs on the posture in ``self.data`` (see :func:`azee_mj.natural.rows`)."""
-        r, J = plan.core.natural()
-        r = np.frombuffer(r)
-        return r, np.frombuffer(J).reshape(r.size, plan.free.size)
-
     def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
         """The most natural posture among those that meet the constraints, from ``q`` that
         meets them: Gauss-Newton steps on the naturalness rows in the null space of the

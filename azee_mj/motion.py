@@ -197,10 +197,10 @@ class Motion:
                     if f > 0:
                         # from half a step toward the curve from the frame before, moving at
                         # most half a step more: consecutive pushed frames cannot zig-zag
-                        dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
-                        q0[dofs] = np.clip(q[f][dofs], q[f - 1][dofs] - self.frame_step,
-                                           q[f - 1][dofs] + self.frame_step)
-                        q0[dofs] = q[f - 1][dofs] + 0.5 * (q0[dofs] - q[f - 1][dofs])
+                        d, before = self._dofs(free), q[f - 1]
+                        near = np.clip(q[f][d], before[d] - self.frame_step,
+                                       before[d] + self.frame_step)
+                        q0[d] = before[d] + 0.5 * (near - before[d])
                     q[f] = self.solve(soft, sorted(free), q0, t, max_change=0.5 * self.frame_step,
                                       restarts=0).qpos  # fmt: skip
                 continue
@@ -208,12 +208,16 @@ class Motion:
             soft = self.soft_targets(q[f], free)
             q0 = q[f].copy()
             if f > 0:  # from the frame before (final by now): the same branch
-                dofs = [self.m.jnt_dofadr[self.solver.joint_id(j)] for j in free]
-                q0[dofs] = q[f - 1][dofs]
+                d = self._dofs(free)
+                q0[d] = q[f - 1][d]
             res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step,
                              restarts=FRAME_RESTARTS)  # fmt: skip
             q[f] = res.qpos
         return q
+
+    def _dofs(self, joints) -> np.ndarray:
+        """Dof indices of joint names."""
+        return np.array([self.m.jnt_dofadr[self.solver.joint_id(j)] for j in joints], int)
 
     def transpath_points(self, b: sc.Block, q: np.ndarray, times: np.ndarray) -> np.ndarray:
         """(T, 3) path points of a transpath for every frame (valid inside its interval)."""

@@ -55,6 +55,15 @@ def make_solver(
 # ---------------------------------------------------------------------------------------
 
 
+def descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    """Whether ``body`` is ``ancestor`` or one of its descendants."""
+    while body > 0:
+        if body == ancestor:
+            return True
+        body = int(model.body_parentid[body])
+    return False
+
+
 class Compiler:
     """Translates score records into :mod:`azee_mj.constraints` on one signer, and names the
     tracks each drives."""
@@ -65,6 +74,8 @@ class Compiler:
         for track, joints in smap.tracks.items():
             for j in joints:
                 self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
+        self.forearms = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, smap.bones[b].body)
+                         for b in ("f_arm_L", "f_arm_R") if b in smap.bones]  # fmt: skip
 
     # expressions
     def site(self, ref: sc.SiteRef) -> str:
@@ -143,13 +154,7 @@ class Compiler:
         a contact; the shoulder and the upper arm stay where they are)."""
         m = self.m
         body = int(m.site_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)])
-        fore = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, self.smap.bones[b].body)
-                for b in ("f_arm_L", "f_arm_R") if b in self.smap.bones}  # fmt: skip
-        while body > 0:
-            if body in fore:
-                return True
-            body = int(m.body_parentid[body])
-        return False
+        return any(descends(m, body, fore) for fore in self.forearms)
 
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
@@ -261,17 +266,10 @@ class Schedule:
     def part(self, body: int) -> tuple[int, ...]:
         """The bodies that touch as one with ``body``: its whole hand if it is in one."""
         for hand in self.hands:
-            if self.below(body, hand):
-                return tuple(b for b in range(self.m.nbody) if self.below(b, hand))
+            if descends(self.m, body, hand):
+                return tuple(b for b in range(self.m.nbody) if descends(self.m, b, hand))
         return (body,)
 
-    def below(self, body: int, ancestor: int) -> bool:
-        """Whether ``body`` is ``ancestor`` or one of its descendants."""
-        while body > 0:
-            if body == ancestor:
-                return True
-            body = int(self.m.body_parentid[body])
-        return False
 
     def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""

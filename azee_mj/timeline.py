@@ -41,7 +41,8 @@ from azee_mj import score as sc
 from azee_mj.diagnose import diagnose
 from azee_mj.kinematics import BodyAxis, SitePos
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
-from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, make_solver
+from azee_mj.reach import Arm
+from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, descends, make_solver
 from azee_mj.sites import DEFAULT_MAP, DIGITS, SignerMap
 from azee_mj.timing import check_fps, frame_count, frame_range
 
@@ -218,19 +219,25 @@ class Realizer:
         #: constraint label -> why its key posture misses it (see :mod:`azee_mj.diagnose`)
         self.reasons: dict[str, str] = {}
         self.arms = reach.arms_of(self.smap)
-        hands = {a: solver.body_id(a.hand) for a in self.arms}
-        self._hand_of = lambda site: next(
-            (a for a, h in hands.items()
-             if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), h)), None)
-        uppers = {solver.body_id(a.upper): int(self.m.body_parentid[solver.body_id(a.upper)])
-                  for a in self.arms}  # fmt: skip
-        self._limb_root = lambda site: next(
-            (root for up, root in uppers.items()
-             if self.sched.below(int(self.m.site_bodyid[solver.site_id(site)]), up)), None)
         self._azee_site = {model: azee for azee, model in self.smap.sites.items()}
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
             self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
+
+    def _arm_carrying(self, site: str, part: str = "hand") -> Arm | None:
+        """The arm whose ``part`` (``hand`` or ``upper``) carries model ``site``, or None."""
+        body = int(self.m.site_bodyid[self.solver.site_id(site)])
+        return next((a for a in self.arms
+                     if descends(self.m, body, self.solver.body_id(getattr(a, part)))), None)
+
+    def _hand_of(self, site: str) -> Arm | None:
+        """The arm whose hand carries model ``site`` (for the analytic seeds), or None."""
+        return self._arm_carrying(site)
+
+    def _limb_root(self, site: str) -> int | None:
+        """The body a site's arm hangs from (its clavicle), for the reach diagnosis."""
+        arm = self._arm_carrying(site, "upper")
+        return None if arm is None else int(self.m.body_parentid[self.solver.body_id(arm.upper)])
 
     @property
     def results(self) -> list[ik.IKResult]:

@@ -22,11 +22,13 @@ in the tests. Units: metres, radians, newton-metres.
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import mujoco
 import numpy as np
 
 from azee_mj import native
+from azee_mj.kinematics import BodyOrigin, Kinematics
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,3 +172,27 @@ def from_signer_map(model: mujoco.MjModel, signer_map, neutral: np.ndarray,
                 key = "f_arm_pron" if twist else "f_arm_flex"
             strength[dof] = STRENGTH.get(key, 0.0)
     return Naturalness(np.asarray(neutral, float).copy(), strength, comfort, effort_weight)
+
+
+@dataclasses.dataclass(frozen=True)
+class Below:
+    """A preference (a naturalness row, never a constraint): the origin of body ``body``
+    no higher than ``margin`` [m] below that of body ``ref`` (an elbow below its
+    shoulder). One row, ``max(0, z - z_ref + margin) / tol``: zero while it holds, so it
+    only ever pulls a raised elbow down. ``tol`` [m] is the height that costs one unit of
+    naturalness."""
+
+    body: str
+    ref: str
+    margin: float = 0.0
+    tol: float = 0.05
+    label: str = ""
+    soft: ClassVar[bool] = True
+
+    def rows(self, k: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        p, jp = k.eval(BodyOrigin(self.body))
+        q, jq = k.eval(BodyOrigin(self.ref))
+        h = p[2] - q[2] + self.margin
+        if h <= 0.0:
+            return np.zeros(1), np.zeros((1, k.m.nv))
+        return np.array([h / self.tol]), ((jp[2] - jq[2]) / self.tol)[None]

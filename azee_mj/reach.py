@@ -20,10 +20,11 @@ import dataclasses
 
 import mujoco
 import numpy as np
+from scipy import optimize
 
 from azee_mj import constraints as cn
 from azee_mj import ik
-from azee_mj.kinematics import SitePos
+from azee_mj.kinematics import BodyAxis, SitePos
 
 #: The hand comes to its target from this far in front of the shoulder [m].
 APPROACH = 0.3
@@ -47,6 +48,8 @@ class Arm:
     rot: str
     elbow: str
     out: float
+    #: The joints below the elbow that turn the hand (forearm rotation, wrist).
+    wrist: tuple[str, ...] = ()
 
 
 def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
@@ -61,18 +64,23 @@ def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
             continue
         flex, abd, rot, elbow = track[2:6]
         out.append(Arm(bones[0].body, bones[1].body, bones[2].body, flex, abd, rot, elbow,
-                       -1.0 if s == "R" else 1.0))
+                       -1.0 if s == "R" else 1.0, tuple(track[6:])))
     return tuple(out)
 
 
 def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: np.ndarray,
-             target: np.ndarray) -> dict[str, float] | None:
+             target: np.ndarray, facing: tuple[np.ndarray, float] | None = None
+             ) -> dict[str, float] | None:
     """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
     posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel.
 
     The wrist goes short of ``target`` by the hand point's distance from the wrist, on the
-    line from a point ``APPROACH`` in front of the shoulder (a straight wrist). Returns None when the joint
-    frames are not the ones this solution assumes (another signer).
+    line from a point ``APPROACH`` in front of the shoulder (a straight wrist). With
+    ``facing`` (the target surface's outward unit normal, world, and a tolerance [rad]) the
+    hand point is a fingertip that must meet the surface nearly head-on: the hand comes in
+    along the normal, turned toward that frontal approach as far as the tolerance allows.
+    Returns None when the joint frames are not the ones this solution assumes (another
+    signer).
     """
     m, d = model, data
     bid = {n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
@@ -92,6 +100,8 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     target = np.asarray(target, float)
     source = s + APPROACH * Rp[:, 0]
     reach_dir = (target - source) / max(float(np.linalg.norm(target - source)), 1e-9)
+    if facing is not None:
+        reach_dir = -_turn_toward(np.asarray(facing[0], float), -reach_dir, facing[1])
     w = target - float(np.linalg.norm(np.asarray(hand_point, float) - w0)) * reach_dir
     # The arm's rest frame: the parent (clavicle) frame of the shoulder joints.
     x = Rp.T @ (w - s)
@@ -123,6 +133,16 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     return {arm.flex: flex, arm.abd: abd, arm.rot: rot, arm.elbow: e}
 
 
+def _turn_toward(a: np.ndarray, b: np.ndarray, limit: float) -> np.ndarray:
+    """Unit vector ``a`` turned toward unit ``b`` by their angle, at most ``limit`` [rad]."""
+    ang = float(np.arccos(np.clip(a @ b, -1.0, 1.0)))
+    if ang <= limit or ang < 1e-9:
+        return b if ang <= limit else a
+    perp = b - (a @ b) * a
+    perp /= np.linalg.norm(perp)
+    return np.cos(limit) * a + np.sin(limit) * perp
+
+
 def _rot_x(t: float) -> np.ndarray:
     c, s = np.cos(t), np.sin(t)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
@@ -134,11 +154,16 @@ def _rot_y(t: float) -> np.ndarray:
 
 
 def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
-              meet: str | None = None) -> tuple[np.ndarray, ...]:
+              meet: str | None = None, carried_by=None) -> tuple[np.ndarray, ...]:
     """Starts (nq,) for a problem: each free arm in its two-bone posture for the first
-    placement of a site on its hand, and, when a placement joins the two hands, both hands
-    meeting at model site ``meet`` (the neutral signing space). ``hand_of(site)`` is the
-    arm whose hand carries a model site, or None. Empty when no placement moves a free arm.
+    placement of a site on its hand; when a placement joins the two hands, both hands
+    meeting at model site ``meet`` (the neutral signing space); and when a fingertip must
+    meet its target face to face (an ``Orient`` ``OPP`` of the two bodies' normals among
+    ``cons``), the arm bringing it in head-on (see :func:`arm_seed`); when a hand touches
+    the other arm, that arm with its palm in the signing space first, then the hand
+    reaching it. ``hand_of(site)`` is the arm whose hand carries a model site, or None;
+    ``carried_by(site)`` (arm, its palm site, where that palm rests: an expression) for a
+    site on an arm but not on its hand, or None. Empty when no placement moves a free arm.
     """
     m, d = solver.model, solver.data
     d.qpos[:] = q0
@@ -153,18 +178,30 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
 
     def seeded(goals) -> np.ndarray:
         q = q0.copy()
-        for arm, site, target in goals:
-            sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(site)], target)
+        aims = []
+        for arm, site, target, *facing in goals:
+            sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(site)], target, *facing)
             for j, v in (sol or {}).items():
                 q[m.jnt_qposadr[solver.joint_id(j)]] = v
+            if facing and sol:
+                aims.append((arm, site, target))
+        for arm, site, target in aims:
+            q = _aim_hand(solver, q, arm.wrist, site, target)
+        if aims:  # leave ``data`` on ``q0`` for the next group
+            d.qpos[:] = q0
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
         return q
 
-    reach, meeting, used = [], [], set()
+    reach, meeting, head_on, used = [], [], [], set()
     for c in cons:
         if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
             continue
         used.add(arm)
-        reach.append((arm, c.site, solver.kinematics().value(c.target)))
+        target = solver.kinematics().value(c.target)
+        reach.append((arm, c.site, target))
+        if (f := _head_on(solver, arm, c, cons)) is not None:
+            head_on.append((arm, c.site, target, f))
         other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
         if other is not None and other is not arm and meet is not None and not meeting:
             # each hand a little to its own side, so that they start apart and close in
@@ -172,4 +209,122 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             gap = np.array([0.0, MEET_GAP, 0.0])
             meeting = [(arm, c.site, centre + arm.out * gap),
                        (other, c.target.site, centre + other.out * gap)]
-    return tuple(seeded(g) for g in (reach, meeting) if g)
+    if head_on:
+        head_on += [g for g in reach if g[0] not in {h[0] for h in head_on}]
+    seeds = [seeded(g) for g in (reach, meeting, head_on) if g]
+    if seeds and carried_by is not None:
+        seeds += _across(solver, arms, cons, q0, hand_of, carried_by, seeded)
+    return tuple(seeds)
+
+
+def _across(solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of, carried_by,
+            seeded) -> list[np.ndarray]:
+    """Starts for a hand that touches the other arm: that arm's palm where
+    ``carried_by`` says it rests (its forearm across in front of the body), then the hand
+    reaching the touched site there, as it comes and head-on."""
+    m, d = solver.model, solver.data
+    out = []
+    for c in cons:
+        if not isinstance(c, cn.Place) or not isinstance(c.target, SitePos):
+            continue
+        arm, held = hand_of(c.site), carried_by(c.target.site)
+        if arm not in arms or held is None or held[0] not in arms or held[0] is arm:
+            continue
+        other, palm, at = held
+        q1 = seeded([(other, palm, solver.kinematics().value(at))])
+        d.qpos[:] = q1
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        target = d.site_xpos[solver.site_id(c.target.site)].copy()
+        head_on, rule = _head_on(solver, arm, c, cons), _facing_of(solver, c, cons)
+        for goal in [(target,)] + ([(target, head_on)] if head_on else []):
+            q = q1.copy()
+            sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(c.site)], *goal)
+            for j, v in (sol or {}).items():
+                q[m.jnt_qposadr[solver.joint_id(j)]] = v
+            if sol and rule is not None:
+                q = _aim_hand(solver, q, arm.wrist, c.site, target, rule)
+            out.append(q)
+        d.qpos[:] = q0
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        break
+    return out
+
+
+def _aim_hand(solver: ik.Solver, q: np.ndarray, joints, site: str, target: np.ndarray,
+              facing: cn.Orient | None = None) -> np.ndarray:
+    """``q`` with the forearm rotation and wrist ``joints`` (within their ranges) turning
+    the hand so that ``site`` comes nearest ``target`` [m] and, with ``facing``, its
+    surface turns to face the other (the elbow and the wrist stay where the two-bone
+    solution put them; one radian of facing counts as ``AIM_M_PER_RAD``)."""
+    m, d = solver.model, solver.data
+    jid = [solver.joint_id(j) for j in joints]
+    if not jid:
+        return q
+    adr = m.jnt_qposadr[jid]
+    lo, hi = m.jnt_range[jid].T
+    sid = solver.site_id(site)
+    if facing is not None:
+        ba, bb = solver.body_id(facing.body), solver.body_id(facing.vector.body)
+        la, lb = np.asarray(facing.local, float), np.asarray(facing.vector.local, float)
+    q = q.copy()
+
+    def miss(x):
+        q[adr] = np.clip(x, lo, hi)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        cost = float(np.sum((d.site_xpos[sid] - target) ** 2))
+        if facing is not None:
+            c = (d.xmat[ba].reshape(3, 3) @ la) @ (d.xmat[bb].reshape(3, 3) @ lb)
+            cost += 2.0 * (1.0 + c) * AIM_M_PER_RAD**2  # ~ (angle from opposed)^2
+        return cost
+
+    best = min((np.array(x) for x in np.stack(np.meshgrid(
+        *[np.linspace(a, b, 5) for a, b in zip(lo, hi)], indexing="ij"), -1).reshape(-1, len(jid))),
+        key=miss)  # fmt: skip
+    x = optimize.minimize(miss, best, method="Nelder-Mead",
+                          options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": 200}).x
+    q[adr] = np.clip(x, lo, hi)
+    return q
+
+
+#: How much one radian of two surfaces turned from face to face weighs against a distance
+#: when a seed aims its hand [m].
+AIM_M_PER_RAD = 0.05
+
+
+def _facing_of(solver: ik.Solver, place: cn.Place, cons) -> cn.Orient | None:
+    """The face-to-face rule (an ``Orient`` ``OPP`` between the bodies of the two sites
+    ``place`` joins) among ``cons``, or None."""
+    if not isinstance(place.target, SitePos):
+        return None
+    m = solver.model
+    body = int(m.site_bodyid[solver.site_id(place.site)])
+    tbody = int(m.site_bodyid[solver.site_id(place.target.site)])
+    return next((o for o in cons if isinstance(o, cn.Orient) and o.rel is cn.Rel.OPP
+                 and isinstance(o.vector, BodyAxis) and solver.body_id(o.body) == body
+                 and solver.body_id(o.vector.body) == tbody), None)  # fmt: skip
+
+
+#: A hand site whose outward normal is this close to the direction from the wrist to it
+#: (cosine) is an end of the hand (a fingertip), which meets a surface head-on.
+HEAD_ON_COS = 0.7
+
+
+def _head_on(solver: ik.Solver, arm: Arm, place: cn.Place, cons):
+    """(the target surface's outward normal, world; the facing tolerance [rad]) when
+    ``place`` brings an end of ``arm``'s hand (a fingertip) face to face with a surface
+    (an ``Orient`` ``OPP`` between the two sites' bodies among ``cons``), else None."""
+    m, d = solver.model, solver.data
+    o = _facing_of(solver, place, cons)
+    if o is None:
+        return None
+    body = int(m.site_bodyid[solver.site_id(place.site)])
+    out = d.xmat[body].reshape(3, 3) @ np.asarray(o.local, float)
+    along = d.site_xpos[solver.site_id(place.site)] - d.xpos[solver.body_id(arm.hand)]
+    if out @ along < HEAD_ON_COS * np.linalg.norm(along):
+        return None
+    tbody = solver.body_id(o.vector.body)
+    normal = d.xmat[tbody].reshape(3, 3) @ np.asarray(o.vector.local, float)
+    return normal / np.linalg.norm(normal), float(o.tol)

@@ -36,10 +36,10 @@ import mujoco
 import numpy as np
 
 from azee_mj import constraints as cn
-from azee_mj import ik, mirror, reach
+from azee_mj import ik, mirror, natural, reach
 from azee_mj import score as sc
 from azee_mj.diagnose import diagnose
-from azee_mj.kinematics import BodyAxis, SitePos
+from azee_mj.kinematics import BodyAxis, BodyOrigin, Const, Lin, SitePos
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.reach import Arm
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, descends, make_solver
@@ -62,19 +62,38 @@ FACING_TOL = {"PA": 5.0, "H_BACK": 5.0, "H_EDGE": 10.0, "viande": 20.0, "PAD": 3
 #: How far from the signing space two joined hands may drift at the cost of one unit of
 #: naturalness [m].
 MEET_TOL = 0.1
+#: Where the palm of an arm that the other hand touches (its elbow, forearm, upper arm)
+#: rests, from that arm's shoulder joint [m]: forward, toward the midline, up. Its forearm
+#: comes up in front of the body with the elbow bent and low, where the other hand meets it.
+ACROSS = (0.25, 0.0, 0.1)
 #: Two parts neither of which is a hand part (an elbow on the chest).
 FACING_TOL_BODY = 20.0
 
 
+#: An elbow held below its shoulder, as a natural preference when the hand is placed
+#: below the eyes: (how far below [m], the height above that costs one unit [m]).
+ELBOW_LOW = (0.02, 0.05)
+#: Rounded parts of the body [deg]: a fingertip meets them from a range of directions
+#: around the site's normal (the shoulder's cap, the forehead's curve), as far as the
+#: fingertip's own roundness lets the site meet within its tolerance without sinking in.
+FACING_TOL_ROUNDED = {"SH": 45.0, "FH": 40.0}
+
+
 def _facing_tol(a: str, b: str) -> float:
-    """The facing tolerance [rad] of AZee sites ``a`` and ``b`` brought together."""
+    """The facing tolerance [rad] of AZee sites ``a`` and ``b`` brought together: the hand
+    part's, widened for a rounded part of the body."""
     def hand(site: str) -> float:
         parts = site.split("_")
         if len(parts) > 1 and parts[0] in DIGITS and parts[1] in FACING_TOL:
             return FACING_TOL[parts[1]]  # a finger part: I_TIP_R, T_KN_R_1
         return next((t for stem, t in FACING_TOL.items() if site.startswith(stem + "_")), 0.0)
 
-    return np.radians(max(hand(a), hand(b)) or FACING_TOL_BODY)
+    def rounded(site: str) -> float:
+        return next((t for stem, t in FACING_TOL_ROUNDED.items()
+                     if site == stem or site.startswith(stem + "_")), 0.0)  # fmt: skip
+
+    tol = max(hand(a), hand(b)) or FACING_TOL_BODY
+    return np.radians(max(tol, rounded(a), rounded(b)))
 
 
 #: Tracks that return to neutral when no block needs them.
@@ -234,6 +253,16 @@ class Realizer:
         """The arm whose hand carries model ``site`` (for the analytic seeds), or None."""
         return self._arm_carrying(site)
 
+    def _carried_by(self, site: str):
+        """(the arm whose forearm or upper arm carries model ``site``, that arm's palm
+        site, where that palm rests: ``ACROSS``) when the site is not on its hand, else
+        None (for the analytic seeds and the natural preferences)."""
+        arm = self._arm_carrying(site, "upper")
+        if arm is None or self._hand_of(site) is arm:
+            return None
+        palm = self._palm_site(arm)
+        return None if palm is None else (arm, palm, self._across_at(arm))
+
     def _limb_root(self, site: str) -> int | None:
         """The body a site's arm hangs from (its clavicle), for the reach diagnosis."""
         arm = self._arm_carrying(site, "upper")
@@ -355,12 +384,13 @@ class Realizer:
         q0 = state.copy()
         places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
         # Also start each arm in its natural two-bone posture for its hand's target.
-        seeds = reach.arm_seeds(self.solver, self.arms, cons, free, q0, self._hand_of, self._meet)
+        facing = self._facing(cons)
+        seeds = reach.arm_seeds(self.solver, self.arms, cons + facing, free, q0, self._hand_of,
+                                self._meet, self._carried_by)
         if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
-        facing = self._facing(cons)
-        where = self._meeting_place(cons)
+        where = self._meeting_place(cons) + self._elbows_low(cons, free, q0)
         res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)
         self.n_key += 1
         if facing and not res.converged:
@@ -374,15 +404,64 @@ class Realizer:
     def _meeting_place(self, cons) -> tuple[cn.Place, ...]:
         """Where two hands meet when nothing else places them: a preference (with the
         naturalness, below the constraints) for the contact in the neutral signing space,
-        where signers join their hands, rather than low where holding them costs least."""
+        where signers join their hands, rather than low where holding them costs least.
+        A hand that touches the other arm (its elbow, forearm or upper arm) meets it in
+        front of the body too: that arm's palm prefers ``ACROSS``, its forearm raised in
+        front with the elbow bent and low, instead of the arm held out to the side."""
         if self._meet is None:
             return ()
         placed = [c for c in cons if isinstance(c, cn.Place)]
-        joins = [c for c in placed if isinstance(c.target, SitePos) and self._hand_of(c.site)
-                 and self._hand_of(c.target.site) not in (None, self._hand_of(c.site))]  # fmt: skip
-        if len(joins) != 1 or len(placed) != 1:
+        if len(placed) != 1 or not isinstance(placed[0].target, SitePos):
             return ()
-        return (cn.Place(joins[0].site, SitePos(self._meet), MEET_TOL, "meet"),)
+        c = placed[0]
+        arm = self._hand_of(c.site)
+        if arm is None:
+            return ()
+        other = self._hand_of(c.target.site)
+        if other is not None and other is not arm:
+            return (cn.Place(c.site, SitePos(self._meet), MEET_TOL, "meet"),)
+        held = self._carried_by(c.target.site)
+        if held is not None and held[0] is not arm:
+            return (cn.Place(held[1], held[2], MEET_TOL, "meet"),)
+        return ()
+
+    def _elbows_low(self, cons, free, q: np.ndarray) -> tuple[natural.Below, ...]:
+        """A preference, with the naturalness, for each free arm whose hand is placed below
+        the eyes: its elbow no higher than its shoulder (``ELBOW_LOW``). Comfort alone
+        would sometimes fold a raised arm (the upper arm up, the forearm back) rather than
+        bend the wrist; a signer keeps the elbow down unless the hand goes above the eyes."""
+        eyes = [s for a, s in self.smap.sites.items() if a.startswith("EYE_")]
+        if not eyes:
+            return ()
+        d = self.solver.data
+        d.qpos[:] = q
+        mujoco.mj_kinematics(self.m, d)
+        k = self.solver.kinematics()
+        eye_z = min(k.value(SitePos(s))[2] for s in eyes)
+        out, done = [], set()
+        free = set(free)
+        for c in cons:
+            if not isinstance(c, cn.Place) or (arm := self._hand_of(c.site)) is None:
+                continue
+            if arm in done or not {arm.flex, arm.abd, arm.rot, arm.elbow} <= free:
+                continue
+            done.add(arm)
+            if k.value(c.target)[2] < eye_z:
+                margin, tol = ELBOW_LOW
+                out.append(natural.Below(arm.fore, arm.upper, margin, tol, "elbow low"))
+        return tuple(out)
+
+    def _palm_site(self, arm: Arm) -> str | None:
+        """The model site of the palm's centre (AZee ``PA``) on ``arm``'s hand, or None."""
+        hand = self.solver.body_id(arm.hand)
+        return next((s for a, s in self.smap.sites.items() if a.startswith("PA_")
+                     and int(self.m.site_bodyid[self.solver.site_id(s)]) == hand), None)
+
+    def _across_at(self, arm: Arm):
+        """Where the palm of ``arm`` rests when the other hand touches that arm: ``ACROSS``
+        from its shoulder joint (forward, toward the midline, up)."""
+        fwd, inward, up = ACROSS
+        return Lin(((1.0, BodyOrigin(arm.upper)), (1.0, Const((fwd, arm.out * -inward, up)))))
 
     def _facing(self, cons) -> list[cn.Orient]:
         """For each placement of a skin site on another, the two surfaces face to face:

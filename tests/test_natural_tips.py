@@ -1,0 +1,99 @@
+"""Natural postures for fingertips at rounded sites and for a hand on the other arm
+(``bench/natural.py`` contacts, right-handed, held 0.4 s), and the elbow-low preference row.
+"""
+
+import mujoco
+import numpy as np
+import pytest
+
+from azee_mj import load_model, natural
+from azee_mj.ergonomics import ergonomics
+from azee_mj.kinematics import Kinematics
+from azee_mj.schedule import make_solver
+from azee_mj.timeline import realize
+
+FLAT = {"flat": 1.0}
+INDEX = {"fist": 1.0, "index_bend": -1.04, "index_hook": -1.1}
+HOLD = (0.4, 0.8)
+DEG = np.pi / 180.0
+
+
+def contact_score(site, at, strong):
+    morphs = [{"type": "morph", "id": k, "weight": v, "side": "s"} for k, v in strong.items()]
+    return {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "C", "kind": "sync", "start": 0.0, "end": HOLD[1], "children": [
+            {"name": "SHAPE", "kind": "cstr", "start": 0.0, "end": HOLD[1], "constraints": morphs},
+            {"name": "TOUCH", "kind": "cstr", "start": HOLD[0], "end": HOLD[1],
+             "constraints": [{"type": "place", "site": site, "at": at}]},
+        ]},
+    }  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def solver():
+    return make_solver()
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model()
+
+
+def held_posture(solver, site, at, strong):
+    ro = realize(contact_score(site, at, strong), fps=50, solver=solver)
+    touch = [t for t in ro.traces if t.block == "C.TOUCH"]
+    assert len(touch) == 1
+    assert touch[0].ok, touch[0].describe()
+    return ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
+
+
+def test_an_index_on_the_forehead_comes_from_the_front_with_the_elbow_forward(solver, model):
+    q = held_posture(solver, "@I_TIP(s)", "@FH", INDEX)
+    e = ergonomics(model, q)
+    assert e.rula.score <= 4, f"RULA {e.rula.score}"
+    assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
+    # the elbow no higher than 5 cm above the shoulder (it rose 10 cm with a 20-degree rule)
+    assert e.arm("R").elbow_above_shoulder < 0.05
+
+
+@pytest.mark.parametrize("site, strong", [("@PA(s)", FLAT), ("@I_TIP(s)", INDEX)],
+                         ids=["palm-elbow-R", "index-tip-elbow-R"])  # fmt: skip
+def test_the_touched_arm_raises_its_forearm_in_front(solver, model, site, strong):
+    q = held_posture(solver, site, "@EL(w)", strong)
+    e = ergonomics(model, q)
+    assert e.rula.score <= 4, f"RULA {e.rula.score}"
+    weak = e.rula.left
+    assert weak.elbow_flexion > 60 * DEG, f"weak elbow bent {weak.elbow_flexion / DEG:.0f} deg"
+    d = mujoco.MjData(model)
+    d.qpos[:] = q
+    mujoco.mj_kinematics(model, d)
+    palm, elbow = d.body("palm_L").xpos, d.body("f_arm_L").xpos
+    assert palm[0] > 0.15, f"weak palm {palm[0] * 1e3:.0f} mm in front"  # in front of the body
+    assert palm[2] > elbow[2] + 0.1  # the forearm raised, not hanging or held out sideways
+    for side in "RL":
+        assert e.arm(side).elbow_above_shoulder < 0.0
+
+
+def test_the_elbow_low_row_is_zero_below_and_its_jacobian_matches_finite_differences(model):
+    d = mujoco.MjData(model)
+    row = natural.Below("f_arm_R", "arm_R", margin=0.02, tol=0.05)
+    d.qpos[:] = model.key("home").qpos
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    r, J = row.rows(Kinematics(model, d))
+    assert r.shape == (1,) and r[0] == 0.0 and not J.any()
+    # the upper arm raised past the horizontal: the elbow above the shoulder
+    flex = model.jnt_qposadr[model.joint("arm_R_flex").id]
+    d.qpos[flex] = 2.0
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    r, J = row.rows(Kinematics(model, d))
+    h = d.body("f_arm_R").xpos[2] - d.body("arm_R").xpos[2] + 0.02
+    assert h > 0 and r[0] == pytest.approx(h / 0.05)
+    eps = 1e-6
+    d.qpos[flex] += eps
+    mujoco.mj_kinematics(model, d)
+    r2, _ = row.rows(Kinematics(model, d))
+    dof = model.jnt_dofadr[model.joint("arm_R_flex").id]
+    assert J[0, dof] == pytest.approx((r2[0] - r[0]) / eps, rel=1e-4)

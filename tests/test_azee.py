@@ -148,7 +148,15 @@ def test_cinema_is_the_topic_of_info_about_and_ix_points_like_pointing():
     ix = compile_text(":ix('loc ^Rssp)")["root"]
     point = next(c for c in _example("pointing")["root"]["children"] if c["name"] == "IX_R")
     assert ix["end"] == point["end"] == 0.75
-    assert ix["children"][1]["constraints"] == point["constraints"]
+    place, aim, palm, look = ix["children"][1]["constraints"]
+    # as IX_R: the index along the line from the sternum to the locus, the gaze at it
+    assert [aim, look] == [point["constraints"][1], point["constraints"][3]]
+    # but the fingertip 0.1 m past the locus on that line (half way from the chest, the
+    # strong hand cannot point at its own side) and the palm as near down as the index allows
+    assert place["at"] == {"translate": "^Rssp", "by": {"scale": {"unit": aim["vector"]},
+                                                        "by": 0.1}}  # fmt: skip
+    assert palm["vector"] == {"cross": [aim["vector"], {"cross": ["down", aim["vector"]]}]}
+    assert ix["children"][0]["start"] == ix["children"][1]["start"] == 0.35
 
 
 def test_digits_are_signs_with_a_locus():

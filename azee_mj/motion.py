@@ -217,14 +217,11 @@ class Motion:
                         q[f] = self.solve(soft, sorted(free), q[f - 1], t,
                                           max_change=0.5 * self.frame_step, restarts=0).qpos
                 continue
-            kept = set(free)
             free |= {j for tr in tracks for j in self.track_joints[tr]}
             soft = self.soft_targets(q[f], free)
             q0 = q[f].copy()
-            if f > 0 and kept:  # from the frame before (final by now): the same branch
-                # (a track blending without constraints starts on its curve: met at the
-                # start, the solve would leave it frozen at the frame before)
-                d = self._dofs(kept)
+            if f > 0:  # from the frame before (final by now): the same branch
+                d = self._dofs(free)
                 q0[d] = q[f - 1][d]
             res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step,
                              restarts=FRAME_RESTARTS)  # fmt: skip

@@ -7,7 +7,9 @@ Run from the repository root after changing an example, a digit sign or a rule::
 
 1. Lexicon signs made from the examples: ``arbre``, ``armoire``, ``penser`` (the files as
    they are), ``bien`` (with ``loc`` replacing ``^ssp`` in K2) and ``ix`` (IX_R of
-   ``pointing.json``, 0.75 s, ``loc`` the target); the digits ``nb-0`` ... ``nb-9``.
+   ``pointing.json``, 0.75 s, ``loc`` the target, with the fingertip past the locus, the
+   palm as near down as the index allows and the handshape taken in the lead-in: see
+   ``ix``); the digits ``nb-0`` ... ``nb-9``.
    ``cinema`` is written by hand in the lexicon (the generated ``info-about.json`` takes it
    from there).
 2. Examples compiled from expressions: each ``examples/NAME.azee`` gives

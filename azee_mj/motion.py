@@ -119,21 +119,25 @@ class Motion:
         blend = np.zeros(len(times), bool)
         if not tkeys:
             return out, blend
-        # Merge consecutive keys with the same posture into holds.
+        # Merge consecutive keys with the same posture into holds. A return to neutral
+        # ends by the time its relax keys do (``due``): a key merged after it needs the
+        # posture from its start.
         holds: list[list] = []
         for k in tkeys:
             qk = k.q[dofs]
             if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
+                if holds[-1][1] == holds[-1][5] and k.relax:
+                    holds[-1][5] = k.end
                 holds[-1][1] = k.end
             else:
                 holds.append([k.start, k.end, qk, k.relax,
-                              all(isinstance(c, cn.JointTarget) for c in k.cons)])
+                              all(isinstance(c, cn.JointTarget) for c in k.cons), k.end])
         prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
         first = True
-        for a, b, qk, relax, shape_only in holds:
+        for a, b, qk, relax, shape_only, due in holds:
             if relax:
                 need = max(MIN_BLEND, 1.875 * float(np.max(np.abs(qk - prev_q))) / BLEND_SPEED)
-                w0, w1 = a, min(b, a + max(need, min(MAX_BLEND, b - a)))
+                w0, w1 = a, min(b, a + max(need, min(MAX_BLEND, due - a)))
             elif self.mode is Mode.FLATTENED:
                 w0, w1 = (a, a) if first else (prev_end, a)
             else:
@@ -189,10 +193,15 @@ class Motion:
                                          f"{b.path}@path"))  # fmt: skip
                     free |= {j for tr in limbs[b.path] for j in self.track_joints[tr]}
             if not cons:
+                free = {j for tr in sorted(tracks) for j in self.track_joints[tr]}
+                soft = self.soft_targets(q[f], free)
+                if f > 0 and free:
+                    # after frames pushed out, back to the curve at most a step a frame
+                    d, before = self._dofs(free), q[f - 1]
+                    q[f][d] = np.clip(q[f][d], before[d] - self.frame_step,
+                                      before[d] + self.frame_step)
                 if tracks and self.penetrates(q[f], t):
                     # A blend that would pass through the body: push it out, staying close.
-                    free = {j for tr in sorted(tracks) for j in self.track_joints[tr]}
-                    soft = self.soft_targets(q[f], free)
                     q0 = q[f].copy()
                     if f > 0:
                         # from half a step toward the curve from the frame before, moving at
@@ -203,6 +212,10 @@ class Motion:
                         q0[d] = before[d] + 0.5 * (near - before[d])
                     q[f] = self.solve(soft, sorted(free), q0, t, max_change=0.5 * self.frame_step,
                                       restarts=0).qpos  # fmt: skip
+                    if f > 0 and self.penetrates(q[f], t):
+                        # still through (it started deep in): from the frame before, clear
+                        q[f] = self.solve(soft, sorted(free), q[f - 1], t,
+                                          max_change=0.5 * self.frame_step, restarts=0).qpos
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
             soft = self.soft_targets(q[f], free)

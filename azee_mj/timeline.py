@@ -318,11 +318,7 @@ class Realizer:
                 groups = [driven | (set(self.track_joints) - {"face", "eyes"})]
             else:
                 groups = _components([it.driven.tracks for it in items])
-            # Hands (their shapes and finger orientations) and the face first: a placed
-            # fingertip depends on its hand's shape. Then sorted by name (deterministic).
-            groups.sort(key=lambda g: (not all(t.startswith(("hand", "face", "eyes")) for t in g),
-                                       any(it.driven.con is not None for it in items
-                                           if it.driven.tracks & g), sorted(g)))
+            groups = self._order(groups, items)
             before = state.copy()
             solved = []
             for g in groups:
@@ -348,6 +344,30 @@ class Realizer:
                         keys[t].pop()  # recruited after all: no return to neutral here
                     keys[t].append(Key(t0, t1, res.qpos.copy(), tuple(cons), free))
         return keys
+
+    def _order(self, groups: list[set[str]], items: list[Active]) -> list[set[str]]:
+        """The order to solve a segment's groups in: a group whose tracks move a body that
+        another group's constraints name first (the trunk before the head it carries, the
+        head before a hand that touches it: solved the other way round, the later group
+        moves the earlier one off its target). Otherwise (and in a cycle) hands and the
+        face first (a placed fingertip depends on its hand's shape), then groups driven
+        by morphs only, then by name (deterministic)."""
+        def key(g):
+            return (not all(t.startswith(("hand", "face", "eyes")) for t in g),
+                    any(it.driven.con is not None for it in items if it.driven.tracks & g),
+                    sorted(g))
+
+        needs = [set().union(*(self.sched.moved_by(it.driven.con) for it in items
+                               if it.driven.tracks & g and it.driven.con is not None)) - g
+                 for g in groups]  # fmt: skip
+        rest = sorted(range(len(groups)), key=lambda i: key(groups[i]))
+        out = []
+        while rest:
+            i = next((i for i in rest if not any(needs[i] & groups[j] for j in rest if j != i)),
+                     rest[0])  # fmt: skip
+            rest.remove(i)
+            out.append(groups[i])
+        return out
 
     def _relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0: float,
                t1: float) -> None:  # fmt: skip
@@ -378,7 +398,11 @@ class Realizer:
         cons += self._joint_targets(targets)
         free = tuple(j for t in sorted(group) for j in self.track_joints[t])
         prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < 1e-9]
-        if len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev)):
+        # (unless a track outside the group moved what they name: the head under a hand)
+        carriers = set().union(*(self.sched.moved_by(c) for c in cons)) - group
+        if (len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev))
+                and all(np.allclose(state[self.track_dofs[t]], prev[0].q[self.track_dofs[t]],
+                                    atol=SAME_POSTURE) for t in carriers)):  # fmt: skip
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
             return kept, cons, free
         q0 = state.copy()

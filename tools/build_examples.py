@@ -7,7 +7,9 @@ Run from the repository root after changing an example, a digit sign or a rule::
 
 1. Lexicon signs made from the examples: ``arbre``, ``armoire``, ``penser`` (the files as
    they are), ``bien`` (with ``loc`` replacing ``^ssp`` in K2) and ``ix`` (IX_R of
-   ``pointing.json``, 0.75 s, ``loc`` the target); the digits ``nb-0`` ... ``nb-9``.
+   ``pointing.json``, 0.75 s, ``loc`` the target, with the fingertip past the locus, the
+   palm as near down as the index allows and the handshape taken in the lead-in: see
+   ``ix``); the digits ``nb-0`` ... ``nb-9``.
    ``cinema`` is written by hand in the lexicon (the generated ``info-about.json`` takes it
    from there).
 2. Examples compiled from expressions: each ``examples/NAME.azee`` gives
@@ -32,6 +34,14 @@ LEXICON = ROOT / "azee_mj" / "azee" / "lexicon"
 LOC = {"loc": {"kind": "locus", "default": "^ssp"}}
 #: Annotations a generated example keeps from the file it replaces.
 PROSE = ("x-faithful", "x-guessed")
+
+#: How far past the locus the ``ix`` fingertip stops, on the line from the sternum through
+#: the locus [m]. pointing.json stops half way from the chest (0.12 m in front of it): the
+#: wrist then lies at the chest, and pointing at the strong side's locus folds the elbow to
+#: its limit, turns the wrist to its limits and twists the trunk 36 degrees, still missing
+#: the index direction by 5 degrees. The loci are 0.24 m in front of the sternum, nearer
+#: than a pointing hand rests: the hand stops just past the locus, forearm forward.
+IX_PAST = 0.1
 
 #: Digit handshapes (strong hand); 6-9 add a weak hand in hs_5.
 DIGIT_SHAPES = {0: "hs_o", 1: "hs_index", 2: "hs_v", 3: "hs_3", 4: "hs_4", 5: "hs_5"}
@@ -90,15 +100,25 @@ def ix() -> dict:
     point = copy.deepcopy(next(c for c in root["children"] if c["name"] == "IX_R"))
     point["name"] = "IX"
     end = point["end"]
-    shape = dict(shape, end=end, constraints=[
+    # The hand takes its shape during the lead-in, as the arm moves: from the sign's start
+    # it would have to change where the previous sign left the hand (at the temple after
+    # penser, where an index cannot straighten).
+    shape = dict(shape, start=point["start"], end=end, constraints=[
         {"type": "morph", "id": "hs_index", "weight": 1.0, "side": "s"}])
     replace_point({"children": [point]}, "IX", "^Rssp", "$loc")
+    place, aim, palm, _look = point["constraints"]
+    place["at"] = {"translate": "$loc", "by": {"scale": {"unit": aim["vector"]}, "by": IX_PAST}}
+    # palm down as far as the index allows: "down" less its part along the pointing line
+    palm["vector"] = {"cross": [aim["vector"], {"cross": ["down", aim["vector"]]}]}
     return {
         "format": "azee-score", "version": 1, "strong_side": "R",
         "x-source": "IX (index pointing) at 'loc: IX_R of examples/pointing.json",
-        "x-guessed": "as pointing.json: fingertip half way from the chest to the locus, 5 cm "
-                     "forward, palm down, gaze at the locus; 0.35 s lead-in, 0.4 s held; the "
-                     "hs_index handshape",
+        "x-guessed": "as pointing.json (index along the line from the sternum to the "
+                     "locus, palm down, gaze at the locus; 0.35 s lead-in, 0.4 s held), but "
+                     f"the fingertip {IX_PAST} m past the locus on that line (half way from "
+                     "the chest, the strong hand cannot point at its own side), the palm as "
+                     "near down as the index allows, and the hs_index handshape taken during "
+                     "the lead-in",
         "x-params": {"loc": {"kind": "locus", "default": "^ssp"}},
         "root": {"name": "IX", "kind": "sync", "start": 0, "end": end,
                  "children": [shape, point]},

@@ -31,6 +31,8 @@ APPROACH = 0.3
 MEET_GAP = 0.05
 #: The elbow's swivel out of the vertical plane through the shoulder-wrist line [rad].
 SWIVEL_OUT = np.deg2rad(25.0)
+#: Forearm pronation of two hands that start stacked, palms down [rad].
+STACKED_PRONATION = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,6 +49,7 @@ class Arm:
     rot: str
     elbow: str
     out: float
+    pron: str = ""
 
 
 def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
@@ -59,9 +62,9 @@ def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
         bones = [signer_map.bones.get(f"{b}_{s}") for b in ("arm", "f_arm", "palm")]
         if len(track) < 6 or None in bones:
             continue
-        flex, abd, rot, elbow = track[2:6]
+        flex, abd, rot, elbow, pron = track[2:7] if len(track) > 6 else (*track[2:6], "")
         out.append(Arm(bones[0].body, bones[1].body, bones[2].body, flex, abd, rot, elbow,
-                       -1.0 if s == "R" else 1.0))
+                       -1.0 if s == "R" else 1.0, pron))
     return tuple(out)
 
 
@@ -137,8 +140,10 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
               meet: str | None = None) -> tuple[np.ndarray, ...]:
     """Starts (nq,) for a problem: each free arm in its two-bone posture for the first
     placement of a site on its hand, and, when a placement joins the two hands, both hands
-    meeting at model site ``meet`` (the neutral signing space). ``hand_of(site)`` is the
-    arm whose hand carries a model site, or None. Empty when no placement moves a free arm.
+    meeting at model site ``meet`` (the neutral signing space), once as the arms bring them
+    (palms facing each other) and once stacked, both forearms pronated (palms down: a palm
+    on the back of the other hand). ``hand_of(site)`` is the arm whose hand carries a model
+    site, or None. Empty when no placement moves a free arm.
     """
     m, d = solver.model, solver.data
     d.qpos[:] = q0
@@ -172,4 +177,14 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             gap = np.array([0.0, MEET_GAP, 0.0])
             meeting = [(arm, c.site, centre + arm.out * gap),
                        (other, c.target.site, centre + other.out * gap)]
-    return tuple(seeded(g) for g in (reach, meeting) if g)
+    out = [seeded(g) for g in (reach, meeting) if g]
+    if meeting:
+        # the placed hand above the other, both palms down
+        (arm, site, p), (other, osite, po) = meeting
+        up = np.array([0.0, 0.0, MEET_GAP])
+        stacked = seeded([(arm, site, 0.5 * (p + po) + up), (other, osite, 0.5 * (p + po))])
+        for a in (arm, other):
+            if a.pron and a.pron in free:
+                stacked[m.jnt_qposadr[solver.joint_id(a.pron)]] = STACKED_PRONATION
+        out.append(stacked)
+    return tuple(out)

@@ -32,6 +32,8 @@ APPROACH = 0.3
 MEET_GAP = 0.05
 #: The elbow's swivel out of the vertical plane through the shoulder-wrist line [rad].
 SWIVEL_OUT = np.deg2rad(25.0)
+#: Forearm pronation of two hands that start stacked, palms down [rad].
+STACKED_PRONATION = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +52,11 @@ class Arm:
     out: float
     #: The joints below the elbow that turn the hand (forearm rotation, wrist).
     wrist: tuple[str, ...] = ()
+
+    @property
+    def pron(self) -> str:
+        """The forearm rotation joint (the first of :attr:`wrist`), or ""."""
+        return self.wrist[0] if self.wrist else ""
 
 
 def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
@@ -157,7 +164,9 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
               meet: str | None = None, carried_by=None) -> tuple[np.ndarray, ...]:
     """Starts (nq,) for a problem: each free arm in its two-bone posture for the first
     placement of a site on its hand; when a placement joins the two hands, both hands
-    meeting at model site ``meet`` (the neutral signing space); and when a fingertip must
+    meeting at model site ``meet`` (the neutral signing space), once as the arms bring them (palms facing each
+    other) and once stacked, both forearms pronated (palms down: a palm on the back of the
+    other hand); and when a fingertip must
     meet its target face to face (an ``Orient`` ``OPP`` of the two bodies' normals among
     ``cons``), the arm bringing it in head-on (see :func:`arm_seed`); when a hand touches
     the other arm, that arm with its palm in the signing space first, then the hand
@@ -212,6 +221,15 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
     if head_on:
         head_on += [g for g in reach if g[0] not in {h[0] for h in head_on}]
     seeds = [seeded(g) for g in (reach, meeting, head_on) if g]
+    if meeting:
+        # the placed hand above the other, both palms down
+        (arm, site, p), (other, osite, po) = meeting
+        up = np.array([0.0, 0.0, MEET_GAP])
+        stacked = seeded([(arm, site, 0.5 * (p + po) + up), (other, osite, 0.5 * (p + po))])
+        for a in (arm, other):
+            if a.pron and a.pron in free:
+                stacked[m.jnt_qposadr[solver.joint_id(a.pron)]] = STACKED_PRONATION
+        seeds.append(stacked)
     if seeds and carried_by is not None:
         seeds += _across(solver, arms, cons, q0, hand_of, carried_by, seeded)
     return tuple(seeds)

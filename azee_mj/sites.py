@@ -303,6 +303,11 @@ _T_UP = tuple(THUMB_UP[f"thumb_{{X}}_{j}"] for j in _THUMB)  # straight up from 
 _T_IN = _T_ACROSS  # folded across the palm
 _T_OPP = (-0.3, 1.0, 0.3, 1.2)  # opposed: its tip 3 mm from the curved index's tip
 _CURVED = (1.0, 0.0, 1.1, 0.7)  # curved to meet the opposed thumb
+# A pinch: the index's tip on the thumb's tip (0.45 mm apart, the skins touching). The
+# thumb cannot turn its pad toward the index (no axial rotation): the tips meet at 26
+# degrees from end to end, the thumb's MCP and the index's DIP near their limits.
+_T_PINCH = (-0.154, 0.485, 1.005, -0.059)
+_I_PINCH = (0.336, -0.081, 1.278, 1.529)
 
 
 def _hs(thumb, index, middle, ring, little) -> tuple[tuple[float, ...], ...]:
@@ -342,9 +347,9 @@ HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
     "c": _hs((0.0, 0.35, 0.1, 0.1), *[(0.6, 0.0, 0.7, 0.4)] * 4),
     "o": _hs(_T_OPP, *[_CURVED] * 4),
     "flat_o": _hs((0.4, 0.7, 0.1, -0.05), *[(1.05, 0.0, 0.35, 0.2)] * 4),
-    "f": _hs(_T_OPP, _CURVED, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15),
+    "f": _hs(_T_PINCH, _I_PINCH, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15),
              _sp(_STRAIGHT, -0.3)),
-    "pinch": _hs(_T_OPP, _CURVED, _CLOSED, _CLOSED, _CLOSED),
+    "pinch": _hs(_T_PINCH, _I_PINCH, _CLOSED, _CLOSED, _CLOSED),
 }  # fmt: skip
 
 

@@ -75,8 +75,7 @@ FLAT = {"flat": 1.0}
 FIST = {"fist": 1.0}
 INDEX = {"fist": 1.0, "index_bend": -1.04, "index_hook": -1.1}
 THUMB = {"fist": 1.0, "thumb_extended": 1.0}
-PINCH = {"thumb_opposed": 1.0, "index_bend": 0.45, "index_hook": 0.35,
-         "middle_bend": -0.1, "ring_bend": -0.1, "little_bend": -0.1}  # fmt: skip
+PINCH = {"hs_f": 1.0}  # F: the index's tip on the thumb's tip, the other fingers spread
 
 #: (name, group, strong hand shape, weak hand shape or None, placed site, target site);
 #: sites are written with the relative sides ``s`` / ``w`` so that the score mirrors.

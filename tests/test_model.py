@@ -165,7 +165,7 @@ def test_joints_are_limited_hinges_or_face_slides(model):
         ("head_flex", (-30, 25)), ("head_lat", (-20, 20)), ("head_rot", (-25, 25)),
         ("eye_R_yaw", (-46, 47)), ("eye_L_yaw", (-47, 46)), ("eye_L_pitch", (-32, 48)),
         ("clav_L_elev", (-10, 40)), ("clav_R_prot", (-25, 25)),
-        ("arm_R_flex", (-60, 180)), ("arm_L_abd", (-30, 180)), ("arm_R_rot", (-90, 70)),
+        ("arm_R_flex", (-60, 180)), ("arm_L_abd", (-45, 180)), ("arm_R_rot", (-90, 70)),
         ("f_arm_L_flex", (0, 150)), ("f_arm_R_pron", (-80, 80)),
         ("palm_R_flex", (-70, 80)), ("palm_L_dev", (-30, 20)),
         ("index_R_1_flex", (-30, 90)), ("index_L_1_spread", (-15, 25)),

@@ -42,6 +42,12 @@ CASES = [
     pytest.param("@PA(s)", "@PA(w)", FLAT, FLAT, id="palm-palm-R"),
     pytest.param("@PA(s)", "@ST", FLAT, None, id="palm-chest-R"),
     pytest.param("@T_TIP(s)", "@ST(s)", THUMB, None, id="thumb-tip-chest-R"),
+    # two hands stacked, palms down (a start of its own: side by side it stuck 4.8 mm short)
+    pytest.param("@PA(s)", "@H_BACK(w)", FLAT, FLAT, id="palm-on-back-R"),
+    # across the chest to the outer side of the other upper arm (shoulder adduction -45 deg)
+    pytest.param("@PA(s)", "@ARM(w)", FLAT, None, id="palm-upper-arm-R"),
+    # the F hand shape's thumb and index tips meet
+    pytest.param("@T_TIP(s)", "@I_TIP(s)", {"hs_f": 1.0}, None, id="pinch-thumb-index-R"),
 ]  # fmt: skip
 
 

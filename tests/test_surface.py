@@ -192,6 +192,22 @@ def test_fist_with_thumb_extended_has_a_straight_thumb(model, data):
     assert all(c.dist >= -1e-4 for c in data.contact[: data.ncon])
 
 
+@pytest.mark.parametrize("shape", ["hs_f", "hs_pinch"])
+@pytest.mark.parametrize("side", "LR")
+def test_pinch_handshapes_join_thumb_and_index_tips(model, data, shape, side):
+    """The F and pinch hand shapes put the thumb's tip on the index's tip: within the
+    default 1 mm, the two skins touching (within 0.1 mm) without penetrating."""
+    data.qpos[:] = _with_morphs(model, shape, side=side)
+    mujoco.mj_kinematics(model, data)
+    gap = np.linalg.norm(data.site(f"T_TIP_{side}").xpos - data.site(f"I_TIP_{side}").xpos)
+    assert gap < 1e-3
+    thumb, index = (collision_geoms(model, model.body(f"{d}_{side}_3").id) for d in ("thumb", "index"))
+    skin = min(mujoco.mj_geomDistance(model, data, a, b, 0.01, None) for a in thumb for b in index)
+    assert 0.0 <= skin < 1e-4
+    mujoco.mj_collision(model, data)
+    assert all(c.dist >= 0.0 for c in data.contact[: data.ncon])
+
+
 # --------------------------------------------------------------------------- contacts
 
 
@@ -214,7 +230,7 @@ def _face_to_face(site: str, target: str) -> list:
     """``site`` on ``target`` with their outward normals opposed."""
     m = DEFAULT_MAP
     body = {"PA_R": "palm_R", "PA_L": "palm_L", "H_BACK_L": "palm_L", "CK_R": "head",
-            "ST_R": "back_2"}  # fmt: skip
+            "ST_R": "back_2", "ARM_L": "arm_L"}  # fmt: skip
     return [
         cn.Place(site, kin.SitePos(target)),
         cn.Orient(body[site], m.normals[site], cn.Rel.OPP,
@@ -231,8 +247,9 @@ FINGERS_UP = cn.Orient("palm_R", DEFAULT_MAP.bones["palm_R"].dir, cn.Rel.ALONG,
 @pytest.mark.parametrize(
     "site, target, sides, extra",
     [("PA_R", "PA_L", "RL", ()), ("PA_R", "H_BACK_L", "RL", ()),
-     ("PA_R", "CK_R", "R", (FINGERS_UP,)), ("PA_R", "ST_R", "R", ())],
-    ids=["palm-palm", "palm-back", "palm-cheek", "palm-chest"],
+     ("PA_R", "CK_R", "R", (FINGERS_UP,)), ("PA_R", "ST_R", "R", ()),
+     ("PA_R", "ARM_L", "R", ())],
+    ids=["palm-palm", "palm-back", "palm-cheek", "palm-chest", "palm-other-upper-arm"],
 )  # fmt: skip
 def test_flat_palm_contacts_meet_face_to_face(solver, site, target, sides, extra):
     """Flat hands, the body still (only the arms and hands move): the palm reaches the

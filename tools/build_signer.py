@@ -596,7 +596,7 @@ def build_arm() -> Body:
     arm = clav.add(Body("arm_{X}", ARM_R, comment="upper arm: shoulder joint centre"))
     arm.joints = [
         hinge("arm_{X}_flex", "shoulder", (0, -1, 0), -60, 180),
-        hinge("arm_{X}_abd", "shoulder", (-1, 0, 0), -30, 180, home=0.14),
+        hinge("arm_{X}_abd", "shoulder", (-1, 0, 0), -45, 180, home=0.14),
         hinge("arm_{X}_rot", "shoulder", (0, 0, 1), -90, 70),
     ]
     arm_ft = np.r_[ARM_R + [0, 0, -0.005], ELBOW_R + [0, 0, 0.030]]

@@ -39,7 +39,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik, mirror, reach
 from azee_mj import score as sc
 from azee_mj.diagnose import diagnose
-from azee_mj.kinematics import BodyAxis, SitePos
+from azee_mj.kinematics import BodyAxis, Const, SitePos
 from azee_mj.motion import SAME_POSTURE, Key, Mode, Motion
 from azee_mj.reach import Arm
 from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, descends, make_solver
@@ -77,6 +77,12 @@ def _facing_tol(a: str, b: str) -> float:
     return np.radians(max(hand(a), hand(b)) or FACING_TOL_BODY)
 
 
+#: How far the chest may lean from upright for one unit of naturalness cost, once the trunk
+#: is recruited [deg]: far dearer than any joint's comfort, so the trunk leans only as much
+#: as the constraints need.
+UPRIGHT_TOL_DEG = 3.0
+#: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
+LEAN_STEPS = 5
 #: Tracks that return to neutral when no block needs them.
 RELAXING = ("spine", "head")
 
@@ -223,6 +229,11 @@ class Realizer:
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
             self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
+        chest = self.smap.bones.get("back_2")
+        #: The chest upright, a preference once the trunk is recruited (least recruitment).
+        self._upright = () if chest is None else (
+            cn.Orient(chest.body, chest.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)),
+                      np.radians(UPRIGHT_TOL_DEG), "upright"),)  # fmt: skip
 
     def _arm_carrying(self, site: str, part: str = "hand") -> Arm | None:
         """The arm whose ``part`` (``hand`` or ``upper``) carries model ``site``, or None."""
@@ -301,12 +312,7 @@ class Realizer:
                 for t in g:
                     state[self.track_dofs[t]] = solved[-1][0].qpos[self.track_dofs[t]]
             if self.mode is Mode.MULTITRACK and any(not r.converged for r, _, _ in solved):
-                # Out of the limbs' reach alone: let the trunk help, and since moving it
-                # moves everything above it, solve every active track together.
-                group = set().union(*groups) | {"spine"}
-                retry = self._solve_group(group, items, before, keys, t0)
-                if retry[0].converged or _violation(retry[0]) < sum(_violation(r) for r, _, _ in solved):
-                    groups, solved = [group], [retry]
+                groups, solved = self._recruit_trunk(groups, solved, items, before, keys, t0)
             for group, (res, cons, free) in zip(groups, solved):
                 if not res.converged:
                     problem = self.motion.problem(cons, free, before, t0, natural=False)
@@ -319,6 +325,70 @@ class Realizer:
                         keys[t].pop()  # recruited after all: no return to neutral here
                     keys[t].append(Key(t0, t1, res.qpos.copy(), tuple(cons), free))
         return keys
+
+    def _recruit_trunk(self, groups, solved, items, before: np.ndarray, keys, t0: float):
+        """The limbs alone cannot meet some groups' constraints: the trunk helps them, as
+        little as it can (the chest nearest upright among the postures that meet them).
+        The groups met without it are then solved again on the moved trunk (it carries
+        them) rather than riding along: a look turns the head only as far as it needs. If
+        that fails, every active track is solved together with the trunk. Returns the
+        (groups, solved) kept: the first that meets everything, else the least violation."""
+        # a group the score drives the trunk with joins the groups it helps
+        failed = [g for g, (r, _, _) in zip(groups, solved) if not r.converged or "spine" in g]
+        met = [g for g in groups if g not in failed]
+        helped = set().union(*failed) | {"spine"}
+        state = before.copy()
+        first_failed = next(i for i, g in enumerate(groups) if g in failed)
+        for g, (r, _, _) in zip(groups[:first_failed], solved):
+            for t in g:  # solved before it (hand shapes): what the helped group builds on
+                state[self.track_dofs[t]] = r.qpos[self.track_dofs[t]]
+        first = self._lean_less(self._solve_group(helped, items, state, keys, t0, upright=True),
+                                helped, items, keys, t0)  # fmt: skip
+        out = [first]
+        for t in helped:
+            state[self.track_dofs[t]] = first[0].qpos[self.track_dofs[t]]
+        for g in met:
+            out.append(self._solve_group(g, items, state, keys, t0, reuse=False))
+            for t in g:
+                state[self.track_dofs[t]] = out[-1][0].qpos[self.track_dofs[t]]
+        tries = [([helped, *met], out)]
+        if met and not all(r.converged for r, _, _ in out):
+            group = set().union(*groups) | {"spine"}
+            tries.append(([group], [self._solve_group(group, items, before, keys, t0, upright=True)]))
+        best = (groups, solved)
+        for cand in tries:
+            if all(r.converged for r, _, _ in cand[1]):
+                return cand
+            if sum(_violation(r) for r, _, _ in cand[1]) < sum(_violation(r) for r, _, _ in best[1]):
+                best = cand
+        return best
+
+    def _lean_less(self, solved, group: set[str], items, keys, t0: float):
+        """Bring the trunk of a converged ``solved`` (result, cons, free) back toward
+        neutral as far as the rest of ``group`` can still meet the constraints without it:
+        a bisection on the fraction of the trunk's motion kept, the limbs solved again at
+        each step from the last posture that met them. A solve lands where its start
+        leads; this finds the least lean along the way it found. Returns the best solve."""
+        res = solved[0]
+        d = self.track_dofs.get("spine")
+        asked = any("spine" in it.driven.tracks for it in items if it.driven.tracks & group)
+        if not res.converged or d is None or asked:  # the score places the trunk itself
+            return solved
+        lean = res.qpos[d] - self.home[d]
+        if np.abs(lean).max() < SAME_POSTURE:
+            return solved
+        lo, hi, best = 0.0, 1.0, solved
+        for _ in range(LEAN_STEPS):
+            f = 0.5 * (lo + hi)
+            q = best[0].qpos.copy()
+            q[d] = self.home[d] + f * lean
+            res, cons, _ = self._solve_group(group, items, q, keys, t0, reuse=False,
+                                             held=("spine",))  # fmt: skip
+            if res.converged:
+                hi, best = f, (res, cons, solved[2])
+            else:
+                lo = f
+        return best
 
     def _relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0: float,
                t1: float) -> None:  # fmt: skip
@@ -334,11 +404,15 @@ class Realizer:
             state[d] = self.home[d]
             keys[t].append(Key(t0, t1, self.home.copy(), (), self.track_joints[t], relax=True))
 
-    def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float):
+    def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float,
+                     upright: bool = False, reuse: bool = True, held: tuple[str, ...] = ()):  # fmt: skip
         """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
         placements first when a block starts with both). When the constraints are some of
         those that held the group until now (blocks only ended), nothing needs to move and
-        the posture is kept. Returns (result, cons, free)."""
+        the posture is kept (unless not ``reuse``: the trunk under it moved). The ``held``
+        tracks of the group keep their posture in ``state``. ``upright``: the trunk was
+        recruited; among the postures that meet the constraints, the one with the chest
+        nearest upright is preferred. Returns (result, cons, free)."""
         mine = [it for it in items if it.driven.tracks & group]
         cons, targets = [], {}
         for it in mine:
@@ -347,9 +421,9 @@ class Realizer:
             for j, v in it.driven.morph.items():
                 targets[j] = targets.get(j, 0.0) + v
         cons += self._joint_targets(targets)
-        free = tuple(j for t in sorted(group) for j in self.track_joints[t])
+        free = tuple(j for t in sorted(group) if t not in held for j in self.track_joints[t])
         prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < 1e-9]
-        if len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev)):
+        if reuse and len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev)):
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
             return kept, cons, free
         q0 = state.copy()
@@ -360,7 +434,7 @@ class Realizer:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
         facing = self._facing(cons)
-        where = self._meeting_place(cons)
+        where = self._meeting_place(cons) + (self._upright if upright else ())
         res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)
         self.n_key += 1
         if facing and not res.converged:

@@ -383,7 +383,7 @@ class Realizer:
             q = best[0].qpos.copy()
             q[d] = self.home[d] + f * lean
             res, cons, _ = self._solve_group(group, items, q, keys, t0, reuse=False,
-                                             held=("spine",))  # fmt: skip
+                                             held=("spine",), restarts=0)  # fmt: skip
             if res.converged:
                 hi, best = f, (res, cons, solved[2])
             else:
@@ -405,14 +405,17 @@ class Realizer:
             keys[t].append(Key(t0, t1, self.home.copy(), (), self.track_joints[t], relax=True))
 
     def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float,
-                     upright: bool = False, reuse: bool = True, held: tuple[str, ...] = ()):  # fmt: skip
+                     upright: bool = False, reuse: bool = True, held: tuple[str, ...] = (),
+                     restarts: int | None = None):  # fmt: skip
         """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
         placements first when a block starts with both). When the constraints are some of
         those that held the group until now (blocks only ended), nothing needs to move and
         the posture is kept (unless not ``reuse``: the trunk under it moved). The ``held``
-        tracks of the group keep their posture in ``state``. ``upright``: the trunk was
+        tracks of the group keep their posture in ``state``, and the solve continues from
+        ``state`` (no placements-first start). ``upright``: the trunk was
         recruited; among the postures that meet the constraints, the one with the chest
-        nearest upright is preferred. Returns (result, cons, free)."""
+        nearest upright is preferred. ``restarts``: the solver's, if None. Returns (result,
+        cons, free)."""
         mine = [it for it in items if it.driven.tracks & group]
         cons, targets = [], {}
         for it in mine:
@@ -430,16 +433,18 @@ class Realizer:
         places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
         # Also start each arm in its natural two-bone posture for its hand's target.
         seeds = reach.arm_seeds(self.solver, self.arms, cons, free, q0, self._hand_of, self._meet)
-        if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
+        if not held and len(places) < len(cons) and any(it.starts_now for it in mine) and places:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
         facing = self._facing(cons)
         where = self._meeting_place(cons) + (self._upright if upright else ())
-        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)
+        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where,
+                                restarts=restarts)  # fmt: skip
         self.n_key += 1
         if facing and not res.converged:
             # Face to face is a preference below the score's constraints: without it?
-            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where)
+            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where,
+                                      restarts=restarts)  # fmt: skip
             self.n_key += 1
             if plain.converged or _violation(plain) < _violation(res):
                 return plain, cons, free

@@ -184,9 +184,25 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
 
 
 def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_helps(solver):
-    # pointing: the arm alone cannot point at ^Rssp with the palm down, so the trunk helps the
-    # arm; the look at ^Rssp is then solved on the moved trunk, not carried along with it.
-    rollout = timeline.realize("examples/pointing.json", solver=solver)
+    # Pointing at ^Rssp from half way between the sternum and the locus, along that line,
+    # palm exactly down: the arm alone cannot (the index is straight, the line falls 12.7
+    # degrees, the wrist deviates 30 degrees at most), so the trunk helps the arm; the look at
+    # ^Rssp (12 degrees of head alone) is then solved on the moved trunk, not carried along.
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "P", "kind": "sync", "start": 0, "end": 0.8, "children": [
+            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
+                {"type": "morph", "id": "fist", "weight": 1.0},
+                {"type": "morph", "id": "index_bend", "weight": -1.04},
+                {"type": "morph", "id": "index_hook", "weight": -1.1}]},
+            {"name": "IX", "kind": "cstr", "start": 0.35, "end": 0.8, "constraints": [
+                {"type": "place", "site": "@I_TIP(s)", "at": {
+                    "translate": {"mid": ["@ST(s)", "^Rssp"]}, "by": {"scale": "fwd", "by": 0.05}}},
+                {"type": "orient", "bone": "!index(s,1)", "axis": "dir", "rel": "along",
+                 "vector": {"from": "@ST(s)", "to": "^Rssp"}},
+                {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along", "vector": "down"},
+                {"type": "look", "at": "^Rssp"}]}]}}
+    rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     tilt = [ergonomics.ergonomics(solver.model, q) for q in rollout.qpos]
     assert max(e.trunk_angle for e in tilt) > np.radians(5.0)  # recruited

@@ -96,9 +96,9 @@ def ix() -> dict:
     return {
         "format": "azee-score", "version": 1, "strong_side": "R",
         "x-source": "IX (index pointing) at 'loc: IX_R of examples/pointing.json",
-        "x-guessed": "as pointing.json: fingertip half way from the chest to the locus, 5 cm "
-                     "forward, palm down, gaze at the locus; 0.35 s lead-in, 0.4 s held; the "
-                     "hs_index handshape",
+        "x-guessed": "as pointing.json: fingertip three quarters of the way from the chest to "
+                     "the locus, 5 cm forward, palm down within 15 degrees, gaze at the locus; "
+                     "0.35 s lead-in, 0.4 s held; the hs_index handshape",
         "x-params": {"loc": {"kind": "locus", "default": "^ssp"}},
         "root": {"name": "IX", "kind": "sync", "start": 0, "end": end,
                  "children": [shape, point]},

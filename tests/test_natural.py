@@ -185,7 +185,7 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
 
 def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_helps(solver):
     # Pointing at ^Rssp from half way between the sternum and the locus, along that line,
-    # palm exactly down: the arm alone cannot (the index is straight, the line falls 12.7
+    # palm exactly down: the arm alone cannot (the index is straight, the line falls 13.9
     # degrees, the wrist deviates 30 degrees at most), so the trunk helps the arm; the look at
     # ^Rssp (12 degrees of head alone) is then solved on the moved trunk, not carried along.
     score = {

@@ -354,12 +354,16 @@ class Realizer:
         tries = [([helped, *met], out)]
         if met and not all(r.converged for r, _, _ in out):
             group = set().union(*groups) | {"spine"}
-            tries.append(([group], [self._solve_group(group, items, before, keys, t0, upright=True)]))
+            together = self._solve_group(group, items, before, keys, t0, upright=True)
+            tries.append(([group], [together]))
+        def violation(cand) -> float:
+            return sum(_violation(r) for r, _, _ in cand[1])
+
         best = (groups, solved)
         for cand in tries:
             if all(r.converged for r, _, _ in cand[1]):
                 return cand
-            if sum(_violation(r) for r, _, _ in cand[1]) < sum(_violation(r) for r, _, _ in best[1]):
+            if violation(cand) < violation(best):
                 best = cand
         return best
 

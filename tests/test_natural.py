@@ -170,7 +170,8 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
         "format": "azee-score", "version": 1, "strong_side": "R",
         "root": {"name": "R", "kind": "sync", "start": 0, "end": 1.0, "children": [
             {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
-                {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}]}]}}
+                {"type": "place", "site": "@WR(s)",
+                 "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}]}]}}
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     key = rollout.qpos[np.argmin(np.abs(rollout.time - 0.5))]
@@ -179,7 +180,8 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
     q = key.copy()
     q[spine] = solver.natural[spine] + 0.85 * (key[spine] - solver.natural[spine])
     target = Lin(((1.0, SitePos("ssp")), (1.0, Const((0.45, 0.0, 0.0)))))
-    problem = ik.IKProblem((cn.Place("WR_R", target, 1e-3, "far"),), tuple(DEFAULT_MAP.tracks["arm_R"]))
+    problem = ik.IKProblem((cn.Place("WR_R", target, 1e-3, "far"),),
+                           tuple(DEFAULT_MAP.tracks["arm_R"]))  # fmt: skip
     assert not solver.solve(problem, q).converged
 
 
@@ -200,7 +202,8 @@ def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_help
                     "translate": {"mid": ["@ST(s)", "^Rssp"]}, "by": {"scale": "fwd", "by": 0.05}}},
                 {"type": "orient", "bone": "!index(s,1)", "axis": "dir", "rel": "along",
                  "vector": {"from": "@ST(s)", "to": "^Rssp"}},
-                {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along", "vector": "down"},
+                {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along",
+                 "vector": "down"},
                 {"type": "look", "at": "^Rssp"}]}]}}
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)

@@ -96,6 +96,12 @@ def _facing_tol(a: str, b: str) -> float:
     return np.radians(max(tol, rounded(a), rounded(b)))
 
 
+#: How far the chest may lean from upright for one unit of naturalness cost, once the trunk
+#: is recruited [deg]: far dearer than any joint's comfort, so the trunk leans only as much
+#: as the constraints need.
+UPRIGHT_TOL_DEG = 3.0
+#: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
+LEAN_STEPS = 5
 #: Tracks that return to neutral when no block needs them.
 RELAXING = ("spine", "head")
 
@@ -242,6 +248,11 @@ class Realizer:
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
             self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
+        chest = self.smap.bones.get("back_2")
+        #: The chest upright, a preference once the trunk is recruited (least recruitment).
+        self._upright = () if chest is None else (
+            cn.Orient(chest.body, chest.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)),
+                      np.radians(UPRIGHT_TOL_DEG), "upright"),)  # fmt: skip
 
     def _arm_carrying(self, site: str, part: str = "hand") -> Arm | None:
         """The arm whose ``part`` (``hand`` or ``upper``) carries model ``site``, or None."""
@@ -326,12 +337,7 @@ class Realizer:
                 for t in g:
                     state[self.track_dofs[t]] = solved[-1][0].qpos[self.track_dofs[t]]
             if self.mode is Mode.MULTITRACK and any(not r.converged for r, _, _ in solved):
-                # Out of the limbs' reach alone: let the trunk help, and since moving it
-                # moves everything above it, solve every active track together.
-                group = set().union(*groups) | {"spine"}
-                retry = self._solve_group(group, items, before, keys, t0)
-                if retry[0].converged or _violation(retry[0]) < sum(_violation(r) for r, _, _ in solved):
-                    groups, solved = [group], [retry]
+                groups, solved = self._recruit_trunk(groups, solved, items, before, keys, t0)
             for group, (res, cons, free) in zip(groups, solved):
                 if not res.converged:
                     problem = self.motion.problem(cons, free, before, t0, natural=False)
@@ -369,6 +375,74 @@ class Realizer:
             out.append(groups[i])
         return out
 
+    def _recruit_trunk(self, groups, solved, items, before: np.ndarray, keys, t0: float):
+        """The limbs alone cannot meet some groups' constraints: the trunk helps them, as
+        little as it can (the chest nearest upright among the postures that meet them).
+        The groups met without it are then solved again on the moved trunk (it carries
+        them) rather than riding along: a look turns the head only as far as it needs. If
+        that fails, every active track is solved together with the trunk. Returns the
+        (groups, solved) kept: the first that meets everything, else the least violation."""
+        # a group the score drives the trunk with joins the groups it helps
+        failed = [g for g, (r, _, _) in zip(groups, solved) if not r.converged or "spine" in g]
+        met = [g for g in groups if g not in failed]
+        helped = set().union(*failed) | {"spine"}
+        state = before.copy()
+        first_failed = next(i for i, g in enumerate(groups) if g in failed)
+        for g, (r, _, _) in zip(groups[:first_failed], solved):
+            for t in g:  # solved before it (hand shapes): what the helped group builds on
+                state[self.track_dofs[t]] = r.qpos[self.track_dofs[t]]
+        first = self._lean_less(self._solve_group(helped, items, state, keys, t0, upright=True),
+                                helped, items, keys, t0)  # fmt: skip
+        out = [first]
+        for t in helped:
+            state[self.track_dofs[t]] = first[0].qpos[self.track_dofs[t]]
+        for g in met:
+            out.append(self._solve_group(g, items, state, keys, t0, reuse=False))
+            for t in g:
+                state[self.track_dofs[t]] = out[-1][0].qpos[self.track_dofs[t]]
+        tries = [([helped, *met], out)]
+        if met and not all(r.converged for r, _, _ in out):
+            group = set().union(*groups) | {"spine"}
+            together = self._solve_group(group, items, before, keys, t0, upright=True)
+            tries.append(([group], [together]))
+        def violation(cand) -> float:
+            return sum(_violation(r) for r, _, _ in cand[1])
+
+        best = (groups, solved)
+        for cand in tries:
+            if all(r.converged for r, _, _ in cand[1]):
+                return cand
+            if violation(cand) < violation(best):
+                best = cand
+        return best
+
+    def _lean_less(self, solved, group: set[str], items, keys, t0: float):
+        """Bring the trunk of a converged ``solved`` (result, cons, free) back toward
+        neutral as far as the rest of ``group`` can still meet the constraints without it:
+        a bisection on the fraction of the trunk's motion kept, the limbs solved again at
+        each step from the last posture that met them. A solve lands where its start
+        leads; this finds the least lean along the way it found. Returns the best solve."""
+        res = solved[0]
+        d = self.track_dofs.get("spine")
+        asked = any("spine" in it.driven.tracks for it in items if it.driven.tracks & group)
+        if not res.converged or d is None or asked:  # the score places the trunk itself
+            return solved
+        lean = res.qpos[d] - self.home[d]
+        if np.abs(lean).max() < SAME_POSTURE:
+            return solved
+        lo, hi, best = 0.0, 1.0, solved
+        for _ in range(LEAN_STEPS):
+            f = 0.5 * (lo + hi)
+            q = best[0].qpos.copy()
+            q[d] = self.home[d] + f * lean
+            res, cons, _ = self._solve_group(group, items, q, keys, t0, reuse=False,
+                                             held=("spine",), restarts=0)  # fmt: skip
+            if res.converged:
+                hi, best = f, (res, cons, solved[2])
+            else:
+                lo = f
+        return best
+
     def _relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0: float,
                t1: float) -> None:  # fmt: skip
         """The trunk and the head return to neutral over ``[t0, t1)`` when no block needs
@@ -383,11 +457,18 @@ class Realizer:
             state[d] = self.home[d]
             keys[t].append(Key(t0, t1, self.home.copy(), (), self.track_joints[t], relax=True))
 
-    def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float):
+    def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float,
+                     upright: bool = False, reuse: bool = True, held: tuple[str, ...] = (),
+                     restarts: int | None = None):  # fmt: skip
         """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
         placements first when a block starts with both). When the constraints are some of
         those that held the group until now (blocks only ended), nothing needs to move and
-        the posture is kept. Returns (result, cons, free)."""
+        the posture is kept (unless not ``reuse``: the trunk under it moved). The ``held``
+        tracks of the group keep their posture in ``state``, and the solve continues from
+        ``state`` (no placements-first start). ``upright``: the trunk was
+        recruited; among the postures that meet the constraints, the one with the chest
+        nearest upright is preferred. ``restarts``: the solver's, if None. Returns (result,
+        cons, free)."""
         mine = [it for it in items if it.driven.tracks & group]
         cons, targets = [], {}
         for it in mine:
@@ -396,11 +477,11 @@ class Realizer:
             for j, v in it.driven.morph.items():
                 targets[j] = targets.get(j, 0.0) + v
         cons += self._joint_targets(targets)
-        free = tuple(j for t in sorted(group) for j in self.track_joints[t])
+        free = tuple(j for t in sorted(group) if t not in held for j in self.track_joints[t])
         prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < 1e-9]
         # (unless a track outside the group moved what they name: the head under a hand)
         carriers = set().union(*(self.sched.moved_by(c) for c in cons)) - group
-        if (len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev))
+        if (reuse and len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev))
                 and all(np.allclose(state[self.track_dofs[t]], prev[0].q[self.track_dofs[t]],
                                     atol=SAME_POSTURE) for t in carriers)):  # fmt: skip
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
@@ -411,15 +492,18 @@ class Realizer:
         facing = self._facing(cons)
         seeds = reach.arm_seeds(self.solver, self.arms, cons + facing, free, q0, self._hand_of,
                                 self._meet, self._carried_by)
-        if len(places) < len(cons) and any(it.starts_now for it in mine) and places:
+        if not held and len(places) < len(cons) and any(it.starts_now for it in mine) and places:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
-        where = self._meeting_place(cons) + self._elbows_low(cons, free, q0)
-        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where)
+        where = (self._meeting_place(cons) + self._elbows_low(cons, free, q0)
+                 + (self._upright if upright else ()))
+        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where,
+                                restarts=restarts)  # fmt: skip
         self.n_key += 1
         if facing and not res.converged:
             # Face to face is a preference below the score's constraints: without it?
-            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where)
+            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where,
+                                      restarts=restarts)  # fmt: skip
             self.n_key += 1
             if plain.converged or _violation(plain) < _violation(res):
                 return plain, cons, free

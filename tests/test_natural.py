@@ -9,8 +9,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from azee_mj import constraints as cn
-from azee_mj import ik, mirror, natural, reach, timeline
-from azee_mj.kinematics import Const, SitePos
+from azee_mj import ergonomics, ik, mirror, natural, reach, timeline
+from azee_mj.kinematics import Const, Lin, SitePos
 from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
@@ -161,6 +161,55 @@ def test_recruited_trunk_returns_to_neutral(solver):
     assert all(t.ok for t in rollout.traces)
     assert np.abs(rollout.qpos[rollout.time < 0.8][:, spine]).max() > 0.05
     np.testing.assert_allclose(rollout.qpos[-1, spine], solver.natural[spine], atol=1e-9)
+
+
+def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
+    # The wrist 0.45 m in front of the signing space: the trunk must lean. Held at 85 % of
+    # the lean the realizer keeps (toward neutral), the arm alone no longer reaches.
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "R", "kind": "sync", "start": 0, "end": 1.0, "children": [
+            {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
+                {"type": "place", "site": "@WR(s)",
+                 "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}]}]}}
+    rollout = timeline.realize(score, solver=solver)
+    assert all(t.ok for t in rollout.traces)
+    key = rollout.qpos[np.argmin(np.abs(rollout.time - 0.5))]
+    spine = [solver.joint_id(j) for j in DEFAULT_MAP.tracks["spine"]]
+    assert np.abs(key[spine] - solver.natural[spine]).max() > 0.05
+    q = key.copy()
+    q[spine] = solver.natural[spine] + 0.85 * (key[spine] - solver.natural[spine])
+    target = Lin(((1.0, SitePos("ssp")), (1.0, Const((0.45, 0.0, 0.0)))))
+    problem = ik.IKProblem((cn.Place("WR_R", target, 1e-3, "far"),),
+                           tuple(DEFAULT_MAP.tracks["arm_R"]))  # fmt: skip
+    assert not solver.solve(problem, q).converged
+
+
+def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_helps(solver):
+    # Pointing at ^Rssp from half way between the sternum and the locus, along that line,
+    # palm exactly down: the arm alone cannot (the index is straight, the line falls 13.9
+    # degrees, the wrist deviates 30 degrees at most), so the trunk helps the arm; the look at
+    # ^Rssp (12 degrees of head alone) is then solved on the moved trunk, not carried along.
+    score = {
+        "format": "azee-score", "version": 1, "strong_side": "R",
+        "root": {"name": "P", "kind": "sync", "start": 0, "end": 0.8, "children": [
+            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
+                {"type": "morph", "id": "fist", "weight": 1.0},
+                {"type": "morph", "id": "index_bend", "weight": -1.04},
+                {"type": "morph", "id": "index_hook", "weight": -1.1}]},
+            {"name": "IX", "kind": "cstr", "start": 0.35, "end": 0.8, "constraints": [
+                {"type": "place", "site": "@I_TIP(s)", "at": {
+                    "translate": {"mid": ["@ST(s)", "^Rssp"]}, "by": {"scale": "fwd", "by": 0.05}}},
+                {"type": "orient", "bone": "!index(s,1)", "axis": "dir", "rel": "along",
+                 "vector": {"from": "@ST(s)", "to": "^Rssp"}},
+                {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along",
+                 "vector": "down"},
+                {"type": "look", "at": "^Rssp"}]}]}}
+    rollout = timeline.realize(score, solver=solver)
+    assert all(t.ok for t in rollout.traces)
+    tilt = [ergonomics.ergonomics(solver.model, q) for q in rollout.qpos]
+    assert max(e.trunk_angle for e in tilt) > np.radians(5.0)  # recruited
+    assert max(e.head_angle for e in tilt) <= np.radians(15.0)
 
 
 def test_two_bone_seed_puts_the_wrist_on_target_with_the_elbow_below(solver):

@@ -117,7 +117,7 @@ def ix() -> dict:
                      "locus, palm down, gaze at the locus; 0.35 s lead-in, 0.4 s held), but "
                      f"the fingertip {IX_PAST} m past the locus on that line (half way from "
                      "the chest, the strong hand cannot point at its own side), the palm as "
-                     "near down as the index allows, and the hs_index handshape taken during "
+                     "near down as the index allows (within 15 degrees), and the hs_index handshape taken during "
                      "the lead-in",
         "x-params": {"loc": {"kind": "locus", "default": "^ssp"}},
         "root": {"name": "IX", "kind": "sync", "start": 0, "end": end,

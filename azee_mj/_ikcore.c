@@ -20,6 +20,8 @@
 
 /* Must match ik.py. */
 #define MU0 1e-3
+/* Least relative gain of an iteration once every row is within its tolerance. */
+#define MET_GAIN 0.25
 #define MAX_STEP 0.4
 #define COLLISION_TOL 1e-4
 
@@ -616,6 +618,11 @@ static PyObject* Core_lm(Core* s, PyObject* args) {
         stalls++;
         if (posture || stalls >= 3) break;
       }
+      /* Within tolerance already and no longer converging fast: a limit or a contact
+         holds a row short of the stop; the polish starts from here. */
+      if (!posture && gain < MET_GAIN && max_norm(s, cur) <= 1.0 &&
+          s->depth[cur] <= 2 * COLLISION_TOL)
+        break;
     } else {
       mu *= nu;
       nu *= 2.0;
@@ -816,75 +823,38 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
         Hn[a * nm + b] = Hn[b * nm + a] = h;
       }
     }
-    memset(locked, 0, mm);
-    int nlocked = 0;
-    nnull = nm; /* N = identity */
-    for (int i = 0; i < nm * nm; i++) Nb[i] = 0.0;
-    for (int j = 0; j < nm; j++) Nb[j * nm + j] = 1.0;
-    for (int pass = 0; pass < 3; pass++) {
-      int ar = rows + nlocked;
-      if (ar) {
-        if (ar > acap) {
-          acap = ar + 32;
-          free(At);
-          At = malloc(sizeof(double) * acap * mm);
-          lwork = 0;
-        }
-        /* column-major nm x ar: column i = row i of A */
-        for (int i = 0; i < rows; i++)
-          for (int a = 0; a < nm; a++) At[(size_t)i * nm + a] = J[(size_t)i * n + mov[a]];
-        int li = rows;
-        for (int a = 0; a < nm; a++)
-          if (locked[a]) {
-            for (int b = 0; b < nm; b++) At[(size_t)li * nm + b] = (a == b);
-            li++;
-          }
-        /* all nm columns of U (the null space), so jobz 'A' (VT is not used) */
-        int M = nm, Nc = ar, ldu = nm, ldvt = ar, info = 0, lw = -1;
-        char jobz = 'A';
-        double* VT = malloc(sizeof(double) * (size_t)ar * ar);
-        double wq;
-        dgesdd_(&jobz, &M, &Nc, At, &M, Sv, U, &ldu, VT, &ldvt, &wq, &lw, iwork, &info);
-        lw = (int)wq + 1;
-        if (lw > lwork) {
-          free(work);
-          work = malloc(sizeof(double) * lw);
-          lwork = lw;
-        }
-        dgesdd_(&jobz, &M, &Nc, At, &M, Sv, U, &ldu, VT, &ldvt, work, &lwork, iwork, &info);
-        free(VT);
-        if (info != 0) {
-          PyErr_Format(PyExc_RuntimeError, "dgesdd failed (info %d)", info);
-          goto done;
-        }
-        int ns = nm < ar ? nm : ar;
-        k = 0;
-        if (ns && Sv[0] > 0)
-          for (int i = 0; i < ns; i++) k += Sv[i] > null_tol * Sv[0];
-        nnull = nm - k;
-        /* columns k.. of U (column-major, column j at U + j*nm) */
-        memcpy(Nb, U + (size_t)k * nm, sizeof(double) * nm * nnull);
-      }
-      if (!nnull) break;
-      /* B = N^T Hn N + 1e-3 (tr/nnull + 1e-12) I; step_m = -N B^-1 N^T gn */
-      for (int j = 0; j < nnull; j++) {
-        const double* nj = Nb + (size_t)j * nm;
-        for (int a = 0; a < nm; a++) z[a] = dot(Hn + (size_t)a * nm, nj, nm);
-        for (int i = 0; i <= j; i++) B[i * nnull + j] = B[j * nnull + i] = dot(Nb + (size_t)i * nm, z, nm);
-        y[j] = dot(nj, gn, nm);
-      }
-      double tr = 0;
-      for (int j = 0; j < nnull; j++) tr += B[j * nnull + j];
-      for (int j = 0; j < nnull; j++) B[j * nnull + j] += 1e-3 * (tr / nnull + 1e-12);
-      mju_cholFactor(B, nnull, 0.0);
-      mju_cholSolve(z, B, y, nnull);
+    /* The step minimises the naturalness model plus rho |A s|^2 (A: the constraint and
+       collision rows), rho so large that a direction of A with a singular value over
+       null_tol of their scale is held still: the null-space step without a factorisation
+       of A (one Cholesky of nm x nm). A joint the step would take out of its range is held
+       too, and the step solved again. */
+    memset(Nb, 0, sizeof(double) * nm * nm); /* Nb: the Gram matrix A^T A */
+    for (int i = 0; i < rows; i++) {
+      const double* row = J + (size_t)i * n;
       for (int a = 0; a < nm; a++) {
-        double x = 0;
-        for (int j = 0; j < nnull; j++) x -= Nb[(size_t)j * nm + a] * z[j];
-        stepm[a] = x;
+        double x = row[mov[a]];
+        if (x == 0.0) continue;
+        double* Ga = Nb + (size_t)a * nm;
+        for (int b = a; b < nm; b++) Ga[b] += x * row[mov[b]];
       }
+    }
+    double trg = 0, trn = 0;
+    for (int a = 0; a < nm; a++) trg += Nb[a * nm + a], trn += Hn[a * nm + a];
+    double hs = trn / (nm ? nm : 1) + 1e-12;
+    double rho = trg > 0 ? hs / (null_tol * null_tol * trg) : 0.0;
+    double hold = hs / (null_tol * null_tol);
+    memset(locked, 0, mm);
+    for (int pass = 0; pass < 3; pass++) {
+      for (int a = 0; a < nm; a++) {
+        for (int b = a; b < nm; b++) B[a * nm + b] = B[b * nm + a] = Hn[a * nm + b] + rho * Nb[a * nm + b];
+        B[a * nm + a] += 1e-3 * hs + (locked[a] ? hold : 0.0);
+        y[a] = -gn[a];
+      }
+      mju_cholFactor(B, nm, 0.0);
+      mju_cholSolve(stepm, B, y, nm);
       int any = 0;
       for (int a = 0; a < nm; a++) {
+        if (locked[a]) stepm[a] = 0.0;
         int f = mov[a];
         double qm = q[s->free[f]] + stepm[a];
         out[a] = (qm < lo[f] - 1e-12) || (qm > hi[f] + 1e-12);
@@ -892,8 +862,10 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
       }
       if (!any) break;
       for (int a = 0; a < nm; a++)
-        if (out[a] && !locked[a]) locked[a] = 1, nlocked++;
+        if (out[a]) locked[a] = 1;
     }
+    nnull = 0;
+    for (int a = 0; a < nm; a++) nnull |= fabs(stepm[a]) > 1e-12;
     if (!nnull) break;
     memset(step, 0, sizeof(double) * n);
     double big = 0;
@@ -954,7 +926,7 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
       cur = nxt;
       nat = nat_new;
       radius = fmin(2.0 * radius, max_step);
-      stalls = gain < 1e-3 ? stalls + 1 : 0;
+      stalls = gain < 1e-3 ? 2 : 0; /* Gauss-Newton: what a small gain leaves is smaller */
     } else {
       radius *= 0.25;
       stalls += radius < 1e-3 ? 1 : 0;

@@ -24,8 +24,9 @@ Units: metres, radians, seconds.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 
 import mujoco
 import numpy as np
@@ -78,7 +79,8 @@ class IKProblem:
       collide: keep the body out of itself (False: a transparent body, for diagnosis).
       preferences: constraints that join the naturalness objective (rows scaled by their
         tolerance), e.g. where two hands meet when nothing else says where.
-      restarts: further attempts when none meets everything (None: the solver's own).
+      restarts: further generic attempts when none meets everything (None: the solver's
+        own); from 2 up, the solver's ``seeder`` adds its starts to them.
     """
 
     constraints: tuple[Constraint, ...]
@@ -152,6 +154,8 @@ NULL_TOL = 1e-4
 NATURAL_ITER = 30
 #: First trust radius of a natural-posture step [rad].
 NATURAL_STEP = 0.2
+#: Restarts from the seeder's starts between two generic (natural, random) ones.
+SEEDS_PER_GENERIC = 4
 
 class Solver:
     """Solves :class:`IKProblem` s on one model.
@@ -164,12 +168,15 @@ class Solver:
       joint_weights: joint name -> how dear moving it is in the damping and the natural-posture
         preference (default 1; names the model lacks are ignored).
       max_iter: LM iterations per attempt.
-      restarts: further attempts from other starts when an attempt does not converge.
+      restarts: further generic attempts from other starts when an attempt does not
+        converge (the ``seeder``'s starts come on top, from 2 up).
       margin: collision margin [m] for detecting near contacts.
       on_solve: called with each problem and its result, in solving order (an observer).
       naturalness: what makes a posture natural (:mod:`azee_mj.natural`); among the
         postures that meet the constraints without penetration the solver takes the most
         natural one. None = the first it reaches.
+      seeder: ``seeder(solver, problem, q_start)`` gives further starts (nq,) for the
+        restarts, tried after the first (e.g. the arms on other elbow-swivel branches).
     """
 
     def __init__(
@@ -184,6 +191,7 @@ class Solver:
         seed: int = 0,
         on_solve: Callable[[IKProblem, IKResult], None] | None = None,
         naturalness: Naturalness | None = None,
+        seeder: Callable[[Solver, IKProblem, np.ndarray], Sequence[np.ndarray]] | None = None,
     ):
         if isinstance(model, mujoco.MjSpec):
             spec = model.copy()
@@ -201,6 +209,7 @@ class Solver:
         self.restarts = restarts
         self.seed = seed
         self.on_solve = on_solve
+        self.seeder = seeder
         self.names = Names(m)
         self.lower = np.where(m.jnt_limited, m.jnt_range[:, 0], -np.inf)[m.dof_jntid]
         self.upper = np.where(m.jnt_limited, m.jnt_range[:, 1], np.inf)[m.dof_jntid]
@@ -352,9 +361,11 @@ class Solver:
                 if best is None or run.rank < best.rank:
                     best = run
             restarts = self.restarts if problem.restarts is None else problem.restarts
-            while best.rank[0] and attempt < restarts:
+            for start in self._restart_points(problem, q_start, free, restarts):
+                if not best.rank[0]:
+                    break
                 attempt += 1
-                start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
+                start = np.clip(start, plan.lower, plan.upper)
                 run = self._attempt(start, plan, history, transparent_first=attempt == 1)
                 iters += run.iterations
                 if run.rank < best.rank:
@@ -420,22 +431,41 @@ class Solver:
         history.extend(hist)
         return np.frombuffer(q_out).copy(), nat, it
 
-    def _restart_point(self, attempt, q_start, free):
-        """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
-        from the natural posture, later ones from random postures halfway between it and a
-        uniform sample of the joint ranges."""
-        if attempt == 1:
-            return q_start.copy()
-        q = self.natural.copy()
-        if attempt > 2 or np.allclose(q[free], q_start[free]):
-            lo = np.maximum(self.lower[free], -np.pi)
-            hi = np.minimum(self.upper[free], np.pi)
-            # Seeded per attempt: a solve depends only on its problem and start.
-            rng = np.random.default_rng((self.seed, attempt))
-            q[free] = 0.5 * (q[free] + rng.uniform(lo, hi))
+    def _restart_points(self, problem, q_start, free, restarts):
+        """Starts of the restarts, in order: the start again (with self-collision off at
+        first); then, from two restarts up, ``restarts - 1`` generic starts with every start
+        of the ``seeder`` (other arm branches, asked for only now) between them, a generic
+        one after every ``SEEDS_PER_GENERIC`` seeds. The generic starts are the natural
+        posture, then random postures halfway between it and a uniform sample of the joint
+        ranges."""
+        if restarts < 1:
+            return
+        yield q_start.copy()
+        if restarts < 2:
+            return
+        seeds = self.seeder(self, problem, q_start) if self.seeder is not None else ()
+        generic = itertools.islice(self._generic_starts(q_start, free), restarts - 1)
+        for k, q in enumerate(seeds, 1):
+            yield q
+            if k % SEEDS_PER_GENERIC == 0:
+                yield from itertools.islice(generic, 1)
+        yield from generic
+
+    def _generic_starts(self, q_start, free):
+        """The natural posture (unless it is the start), then random postures (endless)."""
         untouched = np.setdiff1d(np.arange(self.model.nv), free)
-        q[untouched] = q_start[untouched]
-        return np.clip(q, self.lower, self.upper)
+        attempt = 1
+        while True:
+            attempt += 1
+            q = self.natural.copy()
+            if attempt > 2 or np.allclose(q[free], q_start[free]):
+                lo = np.maximum(self.lower[free], -np.pi)
+                hi = np.minimum(self.upper[free], np.pi)
+                # Seeded per attempt: a solve depends only on its problem and start.
+                rng = np.random.default_rng((self.seed, attempt))
+                q[free] = 0.5 * (q[free] + rng.uniform(lo, hi))
+            q[untouched] = q_start[untouched]
+            yield np.clip(q, self.lower, self.upper)
 
     def _lm(self, q, plan, history, posture=0.0, stop=0.05) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows

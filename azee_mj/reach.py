@@ -66,9 +66,10 @@ def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
 
 
 def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: np.ndarray,
-             target: np.ndarray) -> dict[str, float] | None:
+             target: np.ndarray, swivel: float | None = None) -> dict[str, float] | None:
     """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
-    posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel.
+    posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel
+    (``swivel`` [rad] from the elbow hanging down, outward positive; None: ``SWIVEL_OUT``).
 
     The wrist goes short of ``target`` by the hand point's distance from the wrist, on the
     line from a point ``APPROACH`` in front of the shoulder (a straight wrist). Returns None when the joint
@@ -109,7 +110,8 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     side = np.cross(n, down)
     if side[1] * arm.out < 0:
         side = -side
-    elbow = n * a1 + rho * (np.cos(SWIVEL_OUT) * down + np.sin(SWIVEL_OUT) * side)
+    sw = SWIVEL_OUT if swivel is None else swivel
+    elbow = n * a1 + rho * (np.cos(sw) * down + np.sin(sw) * side)
     u = elbow / l1
     # u = (cos a sin f, -sin a, -cos a cos f) in the rest frame; mirrored on the left.
     abd = float(np.arcsin(np.clip(-u[1] * -arm.out, -1.0, 1.0)))
@@ -173,3 +175,45 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             meeting = [(arm, c.site, centre + arm.out * gap),
                        (other, c.target.site, centre + other.out * gap)]
     return tuple(seeded(g) for g in (reach, meeting) if g)
+
+
+#: Elbow swivels tried, in this order, when a solve fails from its warm start [rad, from
+#: ``SWIVEL_OUT``]: the natural one, a quarter turn either way, the opposite side.
+SWIVEL_RETRIES = (0.0, -np.pi / 2, np.pi / 2, np.pi)
+
+
+def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
+                 q0: np.ndarray) -> list[np.ndarray]:
+    """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: one free arm
+    at a time (the rest as in ``q0``) in its two-bone posture at each swivel of
+    ``SWIVEL_RETRIES``, its hand at the target of the first placement of a site on it, then
+    its wrist kept where it is. ``hand_of(site)`` is the arm whose hand carries a model
+    site, or None."""
+    m, d = solver.model, solver.data
+    d.qpos[:] = q0
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    free = set(solver.free_dofs(problem).tolist())
+    goals: dict[Arm, tuple[np.ndarray, np.ndarray]] = {}
+    for arm in arms:
+        if not all(solver.joint_info(j)[1] in free for j in (arm.flex, arm.abd, arm.rot,
+                                                              arm.elbow)):  # fmt: skip
+            continue
+        wrist = d.xpos[solver.body_id(arm.hand)].copy()
+        goals[arm] = [(wrist, wrist)]
+    k = solver.kinematics()
+    for c in problem.constraints:
+        if isinstance(c, cn.Place) and (arm := hand_of(c.site)) in goals and len(goals[arm]) < 2:
+            goals[arm].insert(0, (d.site_xpos[solver.site_id(c.site)].copy(), k.value(c.target)))
+    both = arm_seeds(solver, list(goals), problem.constraints, problem.free_joints or (), q0,
+                     hand_of) if problem.free_joints is not None else ()
+    out = list(both)
+    for off in SWIVEL_RETRIES:
+        for arm, pairs in goals.items():
+            for point, target in pairs:
+                sol = arm_seed(m, d, arm, point, target, SWIVEL_OUT + off)
+                q = q0.copy()
+                for j, v in (sol or {}).items():
+                    q[solver.joint_info(j)[0]] = v
+                out.append(q)
+    return out

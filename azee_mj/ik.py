@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 
@@ -145,10 +146,20 @@ class IKResult:
 MU0 = 1e-3
 #: Largest change of one joint in one iteration [rad or m] (a trust region).
 MAX_STEP = 0.4
+#: Once every constraint is within its tolerance, an LM step that lowers the cost by less
+#: than this fraction ends the run: a limit or a contact holds a row short of the 5 % stop,
+#: and the polish starts from there (compiled; the core's ``MET_GAIN``).
+MET_GAIN = 0.25
+#: Far from the tolerances (cost over ``FAR_COST``, rows scaled to 1 at their tolerance) a
+#: step gaining less than ``FAR_GAIN`` counts as a stall: a local minimum that crawls is left
+#: for the next start (compiled; the best unmet attempt is then converged without it).
+FAR_COST = 4.0
+FAR_GAIN = 1e-2
 #: Weight of the guide toward the preferred posture while the constraints are being
 #: reached (per radian; a constraint row is 1 at its tolerance).
 POSTURE = 0.3
-#: Singular values below this fraction of the largest span the constraints' null space.
+#: Directions in which the constraint rows change by less than this fraction of their
+#: scale (root of the trace of A^T A) count as the constraints' null space.
 NULL_TOL = 1e-4
 #: Most natural-posture steps once the constraints are met.
 NATURAL_ITER = 30
@@ -361,12 +372,21 @@ class Solver:
                 if best is None or run.rank < best.rank:
                     best = run
             restarts = self.restarts if problem.restarts is None else problem.restarts
-            for start in self._restart_points(problem, q_start, free, restarts):
+            for start, seeded in self._restart_points(problem, q_start, free, restarts):
                 if not best.rank[0]:
                     break
                 attempt += 1
                 start = np.clip(start, plan.lower, plan.upper)
                 run = self._attempt(start, plan, history, transparent_first=attempt == 1)
+                iters += run.iterations
+                # A seeder's start counts only if it meets everything: an infeasible problem
+                # keeps its best posture from the generic starts, not a far branch.
+                if run.rank < best.rank and not (seeded and run.rank[0]):
+                    best = run
+            if best.rank[0]:
+                # Nothing met everything: converge the best attempt fully (no early stop),
+                # so that an infeasible problem gets its least residual.
+                run = self._settle(self._lm(best.q, plan, history, early=False), plan, history)
                 iters += run.iterations
                 if run.rank < best.rank:
                     best = run
@@ -400,12 +420,17 @@ class Solver:
         if not run.done:
             run = self._lm(run.q, plan, history)
             iters += run.iterations
+        out = self._settle(run, plan, history)
+        return dataclasses.replace(out, iterations=out.iterations + iters - run.iterations)
+
+    def _settle(self, run: LMRun, plan, history) -> Attempt:
+        """The attempt an LM run ends: unmet as it is, met and then polished."""
         if not run.met:
-            return Attempt(run.q, (1, run.cost), iters)
+            return Attempt(run.q, (1, run.cost), run.iterations)
         if not plan.natural:
-            return Attempt(run.q, (0, 0.0), iters)
+            return Attempt(run.q, (0, 0.0), run.iterations)
         q, nat, n_it = self._polish(run.q, plan, history)
-        return Attempt(q, (0, nat), iters + n_it)
+        return Attempt(q, (0, nat), run.iterations + n_it)
 
     def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
         """The most natural posture among those that meet the constraints, from ``q`` that
@@ -415,8 +440,11 @@ class Solver:
         constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
         naturalness never bends a constraint. Returns (q, natural cost, iterations).
 
-        Compiled code (``azee_mj._ikcore``): the null space from LAPACK's SVD (singular
-        values under ``NULL_TOL`` of the largest), a trust radius from ``NATURAL_STEP``
+        Compiled code (``azee_mj._ikcore``): each step minimises the naturalness model
+        plus ``|A s|^2 / (NULL_TOL^2 trace(A^T A))`` times its mean curvature (``A`` the
+        constraint and collision rows), one Cholesky factorisation: directions of ``A``
+        with a singular value over ``NULL_TOL`` of the rows' scale are held still, the rest
+        is the null space; a trust radius from ``NATURAL_STEP``
         doubling on success up to ``MAX_STEP`` and quartered on failure, at most
         ``NATURAL_ITER`` steps, two stalls end it."""
         free = plan.free
@@ -432,21 +460,22 @@ class Solver:
         return np.frombuffer(q_out).copy(), nat, it
 
     def _restart_points(self, problem, q_start, free, restarts):
-        """Starts of the restarts, in order: the start again (with self-collision off at
-        first); then, from two restarts up, ``restarts - 1`` generic starts with every start
+        """(start, from the seeder) of the restarts, in order: the start again (with
+        self-collision off at first); then, from two restarts up, ``restarts - 1`` generic starts with every start
         of the ``seeder`` (other arm branches, asked for only now) between them, a generic
         one after every ``SEEDS_PER_GENERIC`` seeds. The generic starts are the natural
         posture, then random postures halfway between it and a uniform sample of the joint
         ranges."""
         if restarts < 1:
             return
-        yield q_start.copy()
+        yield q_start.copy(), False
         if restarts < 2:
             return
         seeds = self.seeder(self, problem, q_start) if self.seeder is not None else ()
-        generic = itertools.islice(self._generic_starts(q_start, free), restarts - 1)
+        generic = ((q, False) for q in
+                   itertools.islice(self._generic_starts(q_start, free), restarts - 1))
         for k, q in enumerate(seeds, 1):
-            yield q
+            yield q, True
             if k % SEEDS_PER_GENERIC == 0:
                 yield from itertools.islice(generic, 1)
         yield from generic
@@ -467,7 +496,7 @@ class Solver:
             q[untouched] = q_start[untouched]
             yield np.clip(q, self.lower, self.upper)
 
-    def _lm(self, q, plan, history, posture=0.0, stop=0.05) -> LMRun:
+    def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
         ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
         under ``stop`` (its tolerance fraction).
@@ -476,12 +505,13 @@ class Solver:
         of ``J^T J`` (``MU0``) times the joint weights, steps from ``mju_boxQP`` inside the
         joint ranges and a ``MAX_STEP`` trust region, Nielsen's damping update; it stops when
         done, after three steps of little gain (one with the guide on), or when the damping
-        or the step vanish."""
+        or the step vanish; with ``early`` also once met and slow (``MET_GAIN``) or slow far
+        from the tolerances (``FAR_COST``, ``FAR_GAIN``)."""
         free = plan.free
         q_out, cost, done, it, met, hist = plan.core.lm(
             np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
             self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
-            float(posture), float(stop), int(self.max_iter), plan.collide,
+            float(posture), float(stop), int(self.max_iter), plan.collide, early,
         )  # fmt: skip
         history.extend(hist)
         return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))
@@ -604,16 +634,15 @@ def _axis_target(e):
         if f is not None and c != 0.0 and f[0] == "axis":
             return "axis", f[1], f[2], f[3] * np.sign(c)
     if isinstance(e, BodyAxis):
-        loc = np.asarray(e.local, float)
-        n = np.linalg.norm(loc)
-        return ("axis", e.body, loc / n, 1.0) if n >= 1e-12 else None
+        n = math.hypot(*e.local)
+        return ("axis", e.body, np.asarray(e.local, float) / n, 1.0) if n >= 1e-12 else None
     flat = _flat_point(e)
     if flat is None:
         return None
     const, terms = flat
     if terms:
         return "point", const, terms
-    n = np.linalg.norm(const)
+    n = math.hypot(*const.tolist())
     return "const", (const / n if n >= 1e-12 else np.zeros(3))
 
 

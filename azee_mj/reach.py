@@ -184,17 +184,18 @@ SWIVEL_RETRIES = (0.0, -np.pi / 2, np.pi / 2, np.pi)
 
 def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
                  q0: np.ndarray) -> list[np.ndarray]:
-    """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: one free arm
-    at a time (the rest as in ``q0``) in its two-bone posture at each swivel of
-    ``SWIVEL_RETRIES``, its hand at the target of the first placement of a site on it, then
-    its wrist kept where it is. ``hand_of(site)`` is the arm whose hand carries a model
-    site, or None."""
+    """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: first every
+    free arm in its natural two-bone posture for its hand's first placement
+    (:func:`arm_seeds`); then one free arm at a time (the rest as in ``q0``) in its
+    two-bone posture at each swivel of ``SWIVEL_RETRIES``, its hand at the target of the
+    first placement of a site on it, then its wrist kept where it is. ``hand_of(site)`` is
+    the arm whose hand carries a model site, or None."""
     m, d = solver.model, solver.data
     d.qpos[:] = q0
     mujoco.mj_kinematics(m, d)
     mujoco.mj_comPos(m, d)
     free = set(solver.free_dofs(problem).tolist())
-    goals: dict[Arm, tuple[np.ndarray, np.ndarray]] = {}
+    goals: dict[Arm, list[tuple[np.ndarray, np.ndarray]]] = {}  # (hand point, target)
     for arm in arms:
         if not all(solver.joint_info(j)[1] in free for j in (arm.flex, arm.abd, arm.rot,
                                                               arm.elbow)):  # fmt: skip
@@ -205,9 +206,8 @@ def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
     for c in problem.constraints:
         if isinstance(c, cn.Place) and (arm := hand_of(c.site)) in goals and len(goals[arm]) < 2:
             goals[arm].insert(0, (d.site_xpos[solver.site_id(c.site)].copy(), k.value(c.target)))
-    both = arm_seeds(solver, list(goals), problem.constraints, problem.free_joints or (), q0,
-                     hand_of) if problem.free_joints is not None else ()
-    out = list(both)
+    joints = [j for a in goals for j in (a.flex, a.abd, a.rot, a.elbow)]
+    out = list(arm_seeds(solver, list(goals), problem.constraints, joints, q0, hand_of))
     for off in SWIVEL_RETRIES:
         for arm, pairs in goals.items():
             for point, target in pairs:

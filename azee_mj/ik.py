@@ -167,6 +167,9 @@ NATURAL_ITER = 30
 NATURAL_STEP = 0.2
 #: Restarts from the seeder's starts between two generic (natural, random) ones.
 SEEDS_PER_GENERIC = 4
+#: Most iterations of each LM run from a seeder's start (a start in the right basin gets
+#: there quickly; the others are many).
+SEED_ITER = 20
 
 class Solver:
     """Solves :class:`IKProblem` s on one model.
@@ -187,7 +190,8 @@ class Solver:
         postures that meet the constraints without penetration the solver takes the most
         natural one. None = the first it reaches.
       seeder: ``seeder(solver, problem, q_start)`` gives further starts (nq,) for the
-        restarts, tried after the first (e.g. the arms on other elbow-swivel branches).
+        restarts of a problem without ``seeds`` of its own, tried after the first (e.g. the
+        arms on other elbow-swivel branches).
     """
 
     def __init__(
@@ -377,15 +381,17 @@ class Solver:
                     break
                 attempt += 1
                 start = np.clip(start, plan.lower, plan.upper)
-                run = self._attempt(start, plan, history, transparent_first=attempt == 1)
+                run = self._attempt(start, plan, history, transparent_first=attempt == 1,
+                                    max_iter=SEED_ITER if seeded else None)
                 iters += run.iterations
                 # A seeder's start counts only if it meets everything: an infeasible problem
                 # keeps its best posture from the generic starts, not a far branch.
                 if run.rank < best.rank and not (seeded and run.rank[0]):
                     best = run
-            if best.rank[0]:
+            if best.rank[0] and restarts >= 2:
                 # Nothing met everything: converge the best attempt fully (no early stop),
-                # so that an infeasible problem gets its least residual.
+                # so that an infeasible problem gets its least residual (a per-frame solve,
+                # with fewer restarts, keeps its step).
                 run = self._settle(self._lm(best.q, plan, history, early=False), plan, history)
                 iters += run.iterations
                 if run.rank < best.rank:
@@ -405,7 +411,7 @@ class Solver:
             self.on_solve(problem, result)
         return result
 
-    def _attempt(self, start, plan, history, transparent_first=False) -> Attempt:
+    def _attempt(self, start, plan, history, transparent_first=False, max_iter=None) -> Attempt:
         """One attempt from ``start``: reach the constraints (guided toward the preferred
         posture, then without the guide), then the most natural posture that keeps them."""
         iters = 0
@@ -415,10 +421,10 @@ class Solver:
             plan.collide = False
             start = self._lm(start, plan, history, POSTURE).q
             plan.collide = plan.problem.collide
-        run = self._lm(start, plan, history, POSTURE)
+        run = self._lm(start, plan, history, POSTURE, max_iter=max_iter)
         iters += run.iterations
         if not run.done:
-            run = self._lm(run.q, plan, history)
+            run = self._lm(run.q, plan, history, max_iter=max_iter)
             iters += run.iterations
         out = self._settle(run, plan, history)
         return dataclasses.replace(out, iterations=out.iterations + iters - run.iterations)
@@ -461,17 +467,20 @@ class Solver:
 
     def _restart_points(self, problem, q_start, free, restarts):
         """(start, from the seeder) of the restarts, in order: the start again (with
-        self-collision off at first); then, from two restarts up, ``restarts - 1`` generic starts with every start
-        of the ``seeder`` (other arm branches, asked for only now) between them, a generic
-        one after every ``SEEDS_PER_GENERIC`` seeds. The generic starts are the natural
-        posture, then random postures halfway between it and a uniform sample of the joint
-        ranges."""
+        self-collision off at first); then, from two restarts up, ``restarts - 1`` generic
+        starts with every start of the ``seeder`` (other arm branches; asked for only now,
+        and only when the problem has no ``seeds`` of its own) between them, a generic one
+        after every ``SEEDS_PER_GENERIC`` seeds. The generic starts are the natural posture,
+        then random postures halfway between it and a uniform sample of the joint ranges.
+        Each LM run from a seeder's start stops after ``SEED_ITER`` iterations."""
         if restarts < 1:
             return
         yield q_start.copy(), False
         if restarts < 2:
             return
-        seeds = self.seeder(self, problem, q_start) if self.seeder is not None else ()
+        # A problem with seeds of its own (the realizer's) has its starts chosen already.
+        ask = self.seeder is not None and not problem.seeds
+        seeds = self.seeder(self, problem, q_start) if ask else ()
         generic = ((q, False) for q in
                    itertools.islice(self._generic_starts(q_start, free), restarts - 1))
         for k, q in enumerate(seeds, 1):
@@ -496,7 +505,7 @@ class Solver:
             q[untouched] = q_start[untouched]
             yield np.clip(q, self.lower, self.upper)
 
-    def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True) -> LMRun:
+    def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True, max_iter=None) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
         ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
         under ``stop`` (its tolerance fraction).
@@ -511,7 +520,7 @@ class Solver:
         q_out, cost, done, it, met, hist = plan.core.lm(
             np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
             self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
-            float(posture), float(stop), int(self.max_iter), plan.collide, early,
+            float(posture), float(stop), int(max_iter or self.max_iter), plan.collide, early,
         )  # fmt: skip
         history.extend(hist)
         return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))

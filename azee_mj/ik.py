@@ -167,9 +167,6 @@ NATURAL_ITER = 30
 NATURAL_STEP = 0.2
 #: Restarts from the seeder's starts between two generic (natural, random) ones.
 SEEDS_PER_GENERIC = 4
-#: Most iterations of each LM run from a seeder's start (a start in the right basin gets
-#: there quickly; the others are many).
-SEED_ITER = 20
 
 class Solver:
     """Solves :class:`IKProblem` s on one model.
@@ -381,8 +378,8 @@ class Solver:
                     break
                 attempt += 1
                 start = np.clip(start, plan.lower, plan.upper)
-                run = self._attempt(start, plan, history, transparent_first=attempt == 1,
-                                    max_iter=SEED_ITER if seeded else None)
+                # the first restart and the seeder's starts begin with collisions off
+                run = self._attempt(start, plan, history, transparent_first=attempt == 1 or seeded)
                 iters += run.iterations
                 # A seeder's start counts only if it meets everything: an infeasible problem
                 # keeps its best posture from the generic starts, not a far branch.
@@ -411,7 +408,7 @@ class Solver:
             self.on_solve(problem, result)
         return result
 
-    def _attempt(self, start, plan, history, transparent_first=False, max_iter=None) -> Attempt:
+    def _attempt(self, start, plan, history, transparent_first=False) -> Attempt:
         """One attempt from ``start``: reach the constraints (guided toward the preferred
         posture, then without the guide), then the most natural posture that keeps them."""
         iters = 0
@@ -421,10 +418,10 @@ class Solver:
             plan.collide = False
             start = self._lm(start, plan, history, POSTURE).q
             plan.collide = plan.problem.collide
-        run = self._lm(start, plan, history, POSTURE, max_iter=max_iter)
+        run = self._lm(start, plan, history, POSTURE)
         iters += run.iterations
         if not run.done:
-            run = self._lm(run.q, plan, history, max_iter=max_iter)
+            run = self._lm(run.q, plan, history)
             iters += run.iterations
         out = self._settle(run, plan, history)
         return dataclasses.replace(out, iterations=out.iterations + iters - run.iterations)
@@ -471,8 +468,7 @@ class Solver:
         starts with every start of the ``seeder`` (other arm branches; asked for only now,
         and only when the problem has no ``seeds`` of its own) between them, a generic one
         after every ``SEEDS_PER_GENERIC`` seeds. The generic starts are the natural posture,
-        then random postures halfway between it and a uniform sample of the joint ranges.
-        Each LM run from a seeder's start stops after ``SEED_ITER`` iterations."""
+        then random postures halfway between it and a uniform sample of the joint ranges."""
         if restarts < 1:
             return
         yield q_start.copy(), False
@@ -505,7 +501,7 @@ class Solver:
             q[untouched] = q_start[untouched]
             yield np.clip(q, self.lower, self.upper)
 
-    def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True, max_iter=None) -> LMRun:
+    def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
         ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
         under ``stop`` (its tolerance fraction).
@@ -520,7 +516,7 @@ class Solver:
         q_out, cost, done, it, met, hist = plan.core.lm(
             np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
             self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
-            float(posture), float(stop), int(max_iter or self.max_iter), plan.collide, early,
+            float(posture), float(stop), int(self.max_iter), plan.collide, early,
         )  # fmt: skip
         history.extend(hist)
         return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))

@@ -180,16 +180,22 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
 #: Elbow swivels tried, in this order, when a solve fails from its warm start [rad, from
 #: ``SWIVEL_OUT``]: the natural one, a quarter turn either way, the opposite side.
 SWIVEL_RETRIES = (0.0, -np.pi / 2, np.pi / 2, np.pi)
+#: Turns of a placed hand tried when a solve fails [rad]: (forearm pronation, wrist
+#: flexion), each either way; a hand that meets its contact from the wrong side (a finger
+#: under the other hand, in front of the face) needs another face toward it.
+HAND_TURNS = (1.2, 0.8)
 
 
 def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
-                 q0: np.ndarray) -> list[np.ndarray]:
+                 q0: np.ndarray, turns=None) -> list[np.ndarray]:
     """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: first every
     free arm in its natural two-bone posture for its hand's first placement
-    (:func:`arm_seeds`); then one free arm at a time (the rest as in ``q0``) in its
-    two-bone posture at each swivel of ``SWIVEL_RETRIES``, its hand at the target of the
-    first placement of a site on it, then its wrist kept where it is. ``hand_of(site)`` is
-    the arm whose hand carries a model site, or None."""
+    (:func:`arm_seeds`); then ``q0`` with each placed hand turned by ``HAND_TURNS`` (about
+    the forearm, then at the wrist, each way; ``turns`` maps an arm to its (pronation,
+    wrist flexion) joint names, None: no turns); then one free arm at a time (the rest as
+    in ``q0``) in its two-bone posture at each swivel of ``SWIVEL_RETRIES``, its hand at the
+    target of the first placement of a site on it, then its wrist kept where it is.
+    ``hand_of(site)`` is the arm whose hand carries a model site, or None."""
     m, d = solver.model, solver.data
     d.qpos[:] = q0
     mujoco.mj_kinematics(m, d)
@@ -208,6 +214,16 @@ def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
             goals[arm].insert(0, (d.site_xpos[solver.site_id(c.site)].copy(), k.value(c.target)))
     joints = [j for a in goals for j in (a.flex, a.abd, a.rot, a.elbow)]
     out = list(arm_seeds(solver, list(goals), problem.constraints, joints, q0, hand_of))
+    for arm, pairs in goals.items():
+        if len(pairs) < 2 or arm not in (turns or {}):
+            continue  # no placement on this hand
+        for j, turn in zip(turns[arm], HAND_TURNS):
+            qadr, dof, _ = solver.joint_info(j)
+            if dof in free:
+                for sign in (1.0, -1.0):
+                    q = q0.copy()
+                    q[qadr] += sign * turn
+                    out.append(q)
     for off in SWIVEL_RETRIES:
         for arm, pairs in goals.items():
             for point, target in pairs:

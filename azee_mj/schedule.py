@@ -53,14 +53,22 @@ def make_solver(
 
 
 def branch_seeder(solver: ik.Solver, smap: SignerMap):
-    """The solver's ``seeder`` for a signer: when a solve fails from its warm start, each
-    arm on other elbow-swivel branches (:func:`azee_mj.reach.swivel_seeds`)."""
+    """The solver's ``seeder`` for a signer: when a solve fails from its warm start, the
+    placed hands turned and each arm on other elbow-swivel branches
+    (:func:`azee_mj.reach.swivel_seeds`)."""
     m = solver.model
     arms = [a for a in reach.arms_of(smap)
             if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, a.hand) >= 0]  # fmt: skip
     if not arms:
         return None
     hands = [(a, solver.body_id(a.hand)) for a in arms]
+    # each arm's forearm pronation and wrist flexion: the track's joints after the elbow
+    turns = {}
+    for a in arms:
+        track = next((t for t in smap.tracks.values() if a.elbow in t), ())
+        k = list(track).index(a.elbow) if track else -1
+        if 0 <= k and k + 2 < len(track):
+            turns[a] = (track[k + 1], track[k + 2])
     cache: dict[str, reach.Arm | None] = {}
 
     def hand_of(site: str):
@@ -69,7 +77,7 @@ def branch_seeder(solver: ik.Solver, smap: SignerMap):
             cache[site] = next((a for a, h in hands if descends(m, body, h)), None)
         return cache[site]
 
-    return lambda s, problem, q: reach.swivel_seeds(s, arms, hand_of, problem, q)
+    return lambda s, problem, q: reach.swivel_seeds(s, arms, hand_of, problem, q, turns)
 
 
 # ---------------------------------------------------------------------------------------

@@ -232,8 +232,13 @@ def test_restarts_try_the_seeders_branches_and_keep_them_only_when_met(solver):
         plain = solver.solve(ik.IKProblem((far,), arm, restarts=1), solver.natural)
         assert calls == [] and plain.restarts == 1  # one restart: the start again only
         res = solver.solve(ik.IKProblem((far,), arm, restarts=3), solver.natural)
-        assert calls == [len(reach.SWIVEL_RETRIES) * 2 + 1]  # 4 swivels x (target, wrist) + both
+        # both arms' seed, the hand turned 4 ways, 4 swivels x (to the target, wrist kept)
+        assert calls == [1 + 4 + len(reach.SWIVEL_RETRIES) * 2]
         assert res.restarts == 3 + calls[0]
+        # a problem with starts of its own does not ask the seeder
+        solver.solve(ik.IKProblem((far,), arm, seeds=(solver.natural,), restarts=3),
+                     solver.natural)  # fmt: skip
+        assert len(calls) == 1
         # A failed seed never wins: the residual is the generic restarts' one.
         solver.seeder = None
         generic = solver.solve(ik.IKProblem((far,), arm, restarts=3), solver.natural)
@@ -256,10 +261,12 @@ def _stored_problem(path) -> tuple[ik.IKProblem, np.ndarray]:
     return ik.IKProblem(tuple(cons), tuple(doc["free_joints"])), np.array(doc["start"])
 
 
-def test_a_start_on_another_arm_branch_is_met_from_a_two_bone_seed(solver):
-    # A benchmark keyframe and the warm start a chain reached it from: the left arm is on
-    # another branch, so the start and the generic restarts miss; an arm seed meets it.
-    problem, start = _stored_problem(DATA / "branch_keyframe.json")
+@pytest.mark.parametrize("name", ["branch_keyframe", "blocked_contact"])
+def test_a_start_on_another_branch_is_met_from_the_seeders_starts(solver, name):
+    # Benchmark keyframes and the warm starts a chain reached them from: an arm on another
+    # branch, fingers meeting interlocked. The start and the generic restarts miss; a
+    # two-bone arm seed, a turned hand meet them.
+    problem, start = _stored_problem(DATA / f"{name}.json")
     seeder = solver.seeder
     solver.seeder = None
     try:

@@ -20,6 +20,12 @@
 
 /* Must match ik.py. */
 #define MU0 1e-3
+/* Least relative gain of an iteration once every row is within its tolerance. */
+#define MET_GAIN 0.25
+/* Far from every tolerance (cost over FAR_COST), a gain under FAR_GAIN is a stall: a local
+   minimum that crawls is left early for the next start. */
+#define FAR_COST 4.0
+#define FAR_GAIN 1e-2
 #define MAX_STEP 0.4
 #define COLLISION_TOL 1e-4
 
@@ -321,10 +327,6 @@ static void effort(const mjModel* m, const mjData* d, int ne, const int* edof,
   }
 }
 
-typedef void dgesdd_t(char*, int*, int*, double*, int*, double*, double*, int*, double*, int*,
-                      double*, int*, int*, int*);
-static dgesdd_t* dgesdd_ = NULL;
-
 /* ------------------------------------------------------------------------------------ */
 /* Python glue                                                                           */
 
@@ -505,16 +507,17 @@ static double cost_of(Core* s, int b, const double* q, double posture, const dou
   return c;
 }
 
-/* lm(q, lo, hi, w, nat, posture, stop, max_iter, collide)
+/* lm(q, lo, hi, w, nat, posture, stop, max_iter, collide, early=True)
      -> (q bytes, cost, done, iterations, met, history list)
+   early: stop once met and slow (MET_GAIN), or slow far from the tolerances (FAR_GAIN).
    One Levenberg-Marquardt run on the constraint and collision rows plus, if posture > 0,
    rows posture * (q - nat) weighted by w (all per free dof); see Solver._lm. */
 static PyObject* Core_lm(Core* s, PyObject* args) {
   PyObject *oq, *olo, *ohi, *ow, *onat;
   double posture, stop;
-  int max_iter, collide;
-  if (!PyArg_ParseTuple(args, "OOOOOddip", &oq, &olo, &ohi, &ow, &onat, &posture, &stop,
-                        &max_iter, &collide))
+  int max_iter, collide, early = 1;
+  if (!PyArg_ParseTuple(args, "OOOOOddip|p", &oq, &olo, &ohi, &ow, &onat, &posture, &stop,
+                        &max_iter, &collide, &early))
     return NULL;
   int n = s->nfree, nq = s->m->nq;
   Py_buffer bq, blo, bhi, bw, bnat;
@@ -612,10 +615,15 @@ static PyObject* Core_lm(Core* s, PyObject* args) {
       PyObject* h = PyFloat_FromDouble(cost);
       PyList_Append(history, h);
       Py_DECREF(h);
-      if (gain < (posture ? 0.02 : 1e-3)) {
+      if (gain < (posture ? 0.02 : early && cost > FAR_COST ? FAR_GAIN : 1e-3)) {
         stalls++;
         if (posture || stalls >= 3) break;
       }
+      /* Within tolerance already and no longer converging fast: a limit or a contact
+         holds a row short of the stop; the polish starts from here. */
+      if (!posture && early && gain < MET_GAIN && max_norm(s, cur) <= 1.0 &&
+          s->depth[cur] <= 2 * COLLISION_TOL)
+        break;
     } else {
       mu *= nu;
       nu *= 2.0;
@@ -750,10 +758,6 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
   if (!PyArg_ParseTuple(args, "OOOOdpiddd", &oq, &olo, &ohi, &omov, &stop, &collide, &iters,
                         &step0, &null_tol, &max_step))
     return NULL;
-  if (!dgesdd_) {
-    PyErr_SetString(PyExc_RuntimeError, "set_lapack() was not called");
-    return NULL;
-  }
   int n = s->nfree, nq = s->m->nq;
   Py_buffer bq, blo, bhi, bmov;
   if (read_q(oq, s, &bq)) return NULL;
@@ -772,10 +776,9 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
   double* Jn[2] = {malloc(sizeof(double) * (nrn + 1) * nn), malloc(sizeof(double) * (nrn + 1) * nn)};
   double* Hn = malloc(sizeof(double) * mm * mm);
   double* gn = malloc(sizeof(double) * mm);
-  double* Nb = malloc(sizeof(double) * mm * mm); /* null-space basis, column j at Nb + j*nm */
+  double* G = malloc(sizeof(double) * mm * mm); /* Gram matrix of the constraint rows */
   double* B = malloc(sizeof(double) * mm * mm);
   double* y = malloc(sizeof(double) * mm);
-  double* z = malloc(sizeof(double) * mm);
   double* stepm = malloc(sizeof(double) * mm);
   double* step = malloc(sizeof(double) * nn);
   double* H = malloc(sizeof(double) * nn * nn);
@@ -786,17 +789,10 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
   double* Rq = malloc(sizeof(double) * nn * (nn + 7));
   unsigned char* locked = malloc(mm);
   unsigned char* out = malloc(mm);
-  /* LAPACK: A^T (nm x rows, column-major == A row-major); U of A^T = V of A */
-  double* At = NULL;
-  double* Sv = malloc(sizeof(double) * mm);
-  double* U = malloc(sizeof(double) * mm * mm);
-  int* iwork = malloc(sizeof(int) * 8 * mm);
-  double* work = NULL;
-  int lwork = 0, acap = 0;
   PyObject* history = PyList_New(0);
   PyObject* result = NULL;
   memcpy(q, bq.buf, sizeof(double) * nq);
-  int cur = 0, it = 0, stalls = 0, k, nnull = nm;
+  int cur = 0, it = 0, stalls = 0, moves = 1;
   double nat = 0.0, radius = step0;
   if (evaluate(s, q, collide, cur)) goto done;
   if (natural_rows(s, rn[cur], Jn[cur]) < 0) goto done;
@@ -816,75 +812,38 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
         Hn[a * nm + b] = Hn[b * nm + a] = h;
       }
     }
-    memset(locked, 0, mm);
-    int nlocked = 0;
-    nnull = nm; /* N = identity */
-    for (int i = 0; i < nm * nm; i++) Nb[i] = 0.0;
-    for (int j = 0; j < nm; j++) Nb[j * nm + j] = 1.0;
-    for (int pass = 0; pass < 3; pass++) {
-      int ar = rows + nlocked;
-      if (ar) {
-        if (ar > acap) {
-          acap = ar + 32;
-          free(At);
-          At = malloc(sizeof(double) * acap * mm);
-          lwork = 0;
-        }
-        /* column-major nm x ar: column i = row i of A */
-        for (int i = 0; i < rows; i++)
-          for (int a = 0; a < nm; a++) At[(size_t)i * nm + a] = J[(size_t)i * n + mov[a]];
-        int li = rows;
-        for (int a = 0; a < nm; a++)
-          if (locked[a]) {
-            for (int b = 0; b < nm; b++) At[(size_t)li * nm + b] = (a == b);
-            li++;
-          }
-        /* all nm columns of U (the null space), so jobz 'A' (VT is not used) */
-        int M = nm, Nc = ar, ldu = nm, ldvt = ar, info = 0, lw = -1;
-        char jobz = 'A';
-        double* VT = malloc(sizeof(double) * (size_t)ar * ar);
-        double wq;
-        dgesdd_(&jobz, &M, &Nc, At, &M, Sv, U, &ldu, VT, &ldvt, &wq, &lw, iwork, &info);
-        lw = (int)wq + 1;
-        if (lw > lwork) {
-          free(work);
-          work = malloc(sizeof(double) * lw);
-          lwork = lw;
-        }
-        dgesdd_(&jobz, &M, &Nc, At, &M, Sv, U, &ldu, VT, &ldvt, work, &lwork, iwork, &info);
-        free(VT);
-        if (info != 0) {
-          PyErr_Format(PyExc_RuntimeError, "dgesdd failed (info %d)", info);
-          goto done;
-        }
-        int ns = nm < ar ? nm : ar;
-        k = 0;
-        if (ns && Sv[0] > 0)
-          for (int i = 0; i < ns; i++) k += Sv[i] > null_tol * Sv[0];
-        nnull = nm - k;
-        /* columns k.. of U (column-major, column j at U + j*nm) */
-        memcpy(Nb, U + (size_t)k * nm, sizeof(double) * nm * nnull);
-      }
-      if (!nnull) break;
-      /* B = N^T Hn N + 1e-3 (tr/nnull + 1e-12) I; step_m = -N B^-1 N^T gn */
-      for (int j = 0; j < nnull; j++) {
-        const double* nj = Nb + (size_t)j * nm;
-        for (int a = 0; a < nm; a++) z[a] = dot(Hn + (size_t)a * nm, nj, nm);
-        for (int i = 0; i <= j; i++) B[i * nnull + j] = B[j * nnull + i] = dot(Nb + (size_t)i * nm, z, nm);
-        y[j] = dot(nj, gn, nm);
-      }
-      double tr = 0;
-      for (int j = 0; j < nnull; j++) tr += B[j * nnull + j];
-      for (int j = 0; j < nnull; j++) B[j * nnull + j] += 1e-3 * (tr / nnull + 1e-12);
-      mju_cholFactor(B, nnull, 0.0);
-      mju_cholSolve(z, B, y, nnull);
+    /* The step minimises the naturalness model plus rho |A s|^2 (A: the constraint and
+       collision rows), rho so large that a direction of A with a singular value over
+       null_tol of their scale is held still: the null-space step without a factorisation
+       of A (one Cholesky of nm x nm). A joint the step would take out of its range is held
+       too, and the step solved again. */
+    memset(G, 0, sizeof(double) * nm * nm);
+    for (int i = 0; i < rows; i++) {
+      const double* row = J + (size_t)i * n;
       for (int a = 0; a < nm; a++) {
-        double x = 0;
-        for (int j = 0; j < nnull; j++) x -= Nb[(size_t)j * nm + a] * z[j];
-        stepm[a] = x;
+        double x = row[mov[a]];
+        if (x == 0.0) continue;
+        double* Ga = G + (size_t)a * nm;
+        for (int b = a; b < nm; b++) Ga[b] += x * row[mov[b]];
       }
+    }
+    double trg = 0, trn = 0;
+    for (int a = 0; a < nm; a++) trg += G[a * nm + a], trn += Hn[a * nm + a];
+    double hs = trn / (nm ? nm : 1) + 1e-12;
+    double rho = trg > 0 ? hs / (null_tol * null_tol * trg) : 0.0;
+    double hold = hs / (null_tol * null_tol);
+    memset(locked, 0, mm);
+    for (int pass = 0; pass < 3; pass++) {
+      for (int a = 0; a < nm; a++) {
+        for (int b = a; b < nm; b++) B[a * nm + b] = B[b * nm + a] = Hn[a * nm + b] + rho * G[a * nm + b];
+        B[a * nm + a] += 1e-3 * hs + (locked[a] ? hold : 0.0);
+        y[a] = -gn[a];
+      }
+      mju_cholFactor(B, nm, 0.0);
+      mju_cholSolve(stepm, B, y, nm);
       int any = 0;
       for (int a = 0; a < nm; a++) {
+        if (locked[a]) stepm[a] = 0.0;
         int f = mov[a];
         double qm = q[s->free[f]] + stepm[a];
         out[a] = (qm < lo[f] - 1e-12) || (qm > hi[f] + 1e-12);
@@ -892,9 +851,11 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
       }
       if (!any) break;
       for (int a = 0; a < nm; a++)
-        if (out[a] && !locked[a]) locked[a] = 1, nlocked++;
+        if (out[a]) locked[a] = 1;
     }
-    if (!nnull) break;
+    moves = 0;
+    for (int a = 0; a < nm; a++) moves |= fabs(stepm[a]) > 1e-12;
+    if (!moves) break; /* no freedom left */
     memset(step, 0, sizeof(double) * n);
     double big = 0;
     for (int a = 0; a < nm; a++) {
@@ -970,9 +931,8 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
 done:
   Py_XDECREF(history);
   free(q); free(qn); free(rn[0]); free(rn[1]); free(Jn[0]); free(Jn[1]); free(Hn); free(gn);
-  free(Nb); free(B); free(y); free(z); free(stepm); free(step); free(H); free(g); free(res);
-  free(los); free(his); free(Rq); free(locked); free(out); free(At); free(Sv); free(U);
-  free(iwork); free(work);
+  free(G); free(B); free(y); free(stepm); free(step); free(H); free(g); free(res);
+  free(los); free(his); free(Rq); free(locked); free(out);
   PyBuffer_Release(&bq);
   PyBuffer_Release(&blo);
   PyBuffer_Release(&bhi);
@@ -1022,14 +982,6 @@ static PyObject* mod_effort(PyObject* self, PyObject* args) {
   return out;
 }
 
-/* set_lapack(capsule): LAPACK's dgesdd (scipy.linalg.cython_lapack) for the null spaces. */
-static PyObject* mod_set_lapack(PyObject* self, PyObject* cap) {
-  void* p = PyCapsule_GetPointer(cap, PyCapsule_GetName(cap));
-  if (!p) return NULL;
-  dgesdd_ = (dgesdd_t*)p;
-  Py_RETURN_NONE;
-}
-
 static PyMethodDef Core_methods[] = {
     {"set_natural", (PyCFunction)Core_set_natural, METH_VARARGS,
      "set_natural(edof, escale, comfort, neutral, anc, pref_r, pref_J, pref_callback)."},
@@ -1060,7 +1012,6 @@ static PyTypeObject CoreType = {
 static PyMethodDef mod_methods[] = {
     {"effort", mod_effort, METH_VARARGS,
      "effort(model_addr, data_addr, edof, anc, cols) -> (tau, J): gravity torques."},
-    {"set_lapack", mod_set_lapack, METH_O, "set_lapack(dgesdd capsule)."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef moddef = {PyModuleDef_HEAD_INIT, "_ikcore",
@@ -1081,5 +1032,8 @@ PyMODINIT_FUNC PyInit__ikcore(void) {
   if (PyModule_AddObject(mod, "MAX_STEP", PyFloat_FromDouble(MAX_STEP)) < 0) return NULL;
   if (PyModule_AddObject(mod, "COLLISION_TOL", PyFloat_FromDouble(COLLISION_TOL)) < 0)
     return NULL;
+  if (PyModule_AddObject(mod, "MET_GAIN", PyFloat_FromDouble(MET_GAIN)) < 0) return NULL;
+  if (PyModule_AddObject(mod, "FAR_COST", PyFloat_FromDouble(FAR_COST)) < 0) return NULL;
+  if (PyModule_AddObject(mod, "FAR_GAIN", PyFloat_FromDouble(FAR_GAIN)) < 0) return NULL;
   return mod;
 }

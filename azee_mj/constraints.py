@@ -160,8 +160,8 @@ def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) 
     if not n:
         return 0.0
     dist = d.contact.dist[:n]
-    if allowed:
-        b = m.geom_bodyid[d.contact.geom[:n]]
-        keep = np.array([(x, y) not in allowed for x, y in b])
-        dist = dist[keep]
-    return float(max(0.0, -dist.min())) if dist.size else 0.0
+    deep = np.flatnonzero(dist < 0.0)  # contacts within the margin only are no penetration
+    if allowed and deep.size:
+        b = m.geom_bodyid[d.contact.geom[deep]]
+        deep = deep[[(x, y) not in allowed for x, y in b.tolist()]]
+    return float(-dist[deep].min()) if deep.size else 0.0

@@ -24,8 +24,10 @@ Units: metres, radians, seconds.
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 
 import mujoco
 import numpy as np
@@ -78,7 +80,8 @@ class IKProblem:
       collide: keep the body out of itself (False: a transparent body, for diagnosis).
       preferences: constraints that join the naturalness objective (rows scaled by their
         tolerance), e.g. where two hands meet when nothing else says where.
-      restarts: further attempts when none meets everything (None: the solver's own).
+      restarts: further generic attempts when none meets everything (None: the solver's
+        own); from 2 up, the solver's ``seeder`` adds its starts to them.
     """
 
     constraints: tuple[Constraint, ...]
@@ -143,15 +146,27 @@ class IKResult:
 MU0 = 1e-3
 #: Largest change of one joint in one iteration [rad or m] (a trust region).
 MAX_STEP = 0.4
+#: Once every constraint is within its tolerance, an LM step that lowers the cost by less
+#: than this fraction ends the run: a limit or a contact holds a row short of the 5 % stop,
+#: and the polish starts from there (compiled; the core's ``MET_GAIN``).
+MET_GAIN = 0.25
+#: Far from the tolerances (cost over ``FAR_COST``, rows scaled to 1 at their tolerance) a
+#: step gaining less than ``FAR_GAIN`` counts as a stall: a local minimum that crawls is left
+#: for the next start (compiled; the best unmet attempt is then converged without it).
+FAR_COST = 4.0
+FAR_GAIN = 1e-2
 #: Weight of the guide toward the preferred posture while the constraints are being
 #: reached (per radian; a constraint row is 1 at its tolerance).
 POSTURE = 0.3
-#: Singular values below this fraction of the largest span the constraints' null space.
+#: Directions in which the constraint rows change by less than this fraction of their
+#: scale (root of the trace of A^T A) count as the constraints' null space.
 NULL_TOL = 1e-4
 #: Most natural-posture steps once the constraints are met.
 NATURAL_ITER = 30
 #: First trust radius of a natural-posture step [rad].
 NATURAL_STEP = 0.2
+#: Restarts from the seeder's starts between two generic (natural, random) ones.
+SEEDS_PER_GENERIC = 4
 
 class Solver:
     """Solves :class:`IKProblem` s on one model.
@@ -164,12 +179,16 @@ class Solver:
       joint_weights: joint name -> how dear moving it is in the damping and the natural-posture
         preference (default 1; names the model lacks are ignored).
       max_iter: LM iterations per attempt.
-      restarts: further attempts from other starts when an attempt does not converge.
+      restarts: further generic attempts from other starts when an attempt does not
+        converge (the ``seeder``'s starts come on top, from 2 up).
       margin: collision margin [m] for detecting near contacts.
       on_solve: called with each problem and its result, in solving order (an observer).
       naturalness: what makes a posture natural (:mod:`azee_mj.natural`); among the
         postures that meet the constraints without penetration the solver takes the most
         natural one. None = the first it reaches.
+      seeder: ``seeder(solver, problem, q_start)`` gives further starts (nq,) for the
+        restarts of a problem without ``seeds`` of its own, tried after the first (e.g. the
+        arms on other elbow-swivel branches).
     """
 
     def __init__(
@@ -184,6 +203,7 @@ class Solver:
         seed: int = 0,
         on_solve: Callable[[IKProblem, IKResult], None] | None = None,
         naturalness: Naturalness | None = None,
+        seeder: Callable[[Solver, IKProblem, np.ndarray], Sequence[np.ndarray]] | None = None,
     ):
         if isinstance(model, mujoco.MjSpec):
             spec = model.copy()
@@ -201,6 +221,7 @@ class Solver:
         self.restarts = restarts
         self.seed = seed
         self.on_solve = on_solve
+        self.seeder = seeder
         self.names = Names(m)
         self.lower = np.where(m.jnt_limited, m.jnt_range[:, 0], -np.inf)[m.dof_jntid]
         self.upper = np.where(m.jnt_limited, m.jnt_range[:, 1], np.inf)[m.dof_jntid]
@@ -352,10 +373,23 @@ class Solver:
                 if best is None or run.rank < best.rank:
                     best = run
             restarts = self.restarts if problem.restarts is None else problem.restarts
-            while best.rank[0] and attempt < restarts:
+            for start, seeded in self._restart_points(problem, q_start, free, restarts):
+                if not best.rank[0]:
+                    break
                 attempt += 1
-                start = np.clip(self._restart_point(attempt, q_start, free), plan.lower, plan.upper)
-                run = self._attempt(start, plan, history, transparent_first=attempt == 1)
+                start = np.clip(start, plan.lower, plan.upper)
+                # the first restart and the seeder's starts begin with collisions off
+                run = self._attempt(start, plan, history, transparent_first=attempt == 1 or seeded)
+                iters += run.iterations
+                # A seeder's start counts only if it meets everything: an infeasible problem
+                # keeps its best posture from the generic starts, not a far branch.
+                if run.rank < best.rank and not (seeded and run.rank[0]):
+                    best = run
+            if best.rank[0] and restarts >= 2:
+                # Nothing met everything: converge the best attempt fully (no early stop),
+                # so that an infeasible problem gets its least residual (a per-frame solve,
+                # with fewer restarts, keeps its step).
+                run = self._settle(self._lm(best.q, plan, history, early=False), plan, history)
                 iters += run.iterations
                 if run.rank < best.rank:
                     best = run
@@ -389,12 +423,17 @@ class Solver:
         if not run.done:
             run = self._lm(run.q, plan, history)
             iters += run.iterations
+        out = self._settle(run, plan, history)
+        return dataclasses.replace(out, iterations=out.iterations + iters - run.iterations)
+
+    def _settle(self, run: LMRun, plan, history) -> Attempt:
+        """The attempt an LM run ends: unmet as it is, met and then polished."""
         if not run.met:
-            return Attempt(run.q, (1, run.cost), iters)
+            return Attempt(run.q, (1, run.cost), run.iterations)
         if not plan.natural:
-            return Attempt(run.q, (0, 0.0), iters)
+            return Attempt(run.q, (0, 0.0), run.iterations)
         q, nat, n_it = self._polish(run.q, plan, history)
-        return Attempt(q, (0, nat), iters + n_it)
+        return Attempt(q, (0, nat), run.iterations + n_it)
 
     def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int]:
         """The most natural posture among those that meet the constraints, from ``q`` that
@@ -404,8 +443,11 @@ class Solver:
         constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
         naturalness never bends a constraint. Returns (q, natural cost, iterations).
 
-        Compiled code (``azee_mj._ikcore``): the null space from LAPACK's SVD (singular
-        values under ``NULL_TOL`` of the largest), a trust radius from ``NATURAL_STEP``
+        Compiled code (``azee_mj._ikcore``): each step minimises the naturalness model
+        plus ``|A s|^2 / (NULL_TOL^2 trace(A^T A))`` times its mean curvature (``A`` the
+        constraint and collision rows), one Cholesky factorisation: directions of ``A``
+        with a singular value over ``NULL_TOL`` of the rows' scale are held still, the rest
+        is the null space; a trust radius from ``NATURAL_STEP``
         doubling on success up to ``MAX_STEP`` and quartered on failure, at most
         ``NATURAL_ITER`` steps, two stalls end it."""
         free = plan.free
@@ -420,24 +462,46 @@ class Solver:
         history.extend(hist)
         return np.frombuffer(q_out).copy(), nat, it
 
-    def _restart_point(self, attempt, q_start, free):
-        """Attempt 1 retries the start with self-collision off at first, attempt 2 starts
-        from the natural posture, later ones from random postures halfway between it and a
-        uniform sample of the joint ranges."""
-        if attempt == 1:
-            return q_start.copy()
-        q = self.natural.copy()
-        if attempt > 2 or np.allclose(q[free], q_start[free]):
-            lo = np.maximum(self.lower[free], -np.pi)
-            hi = np.minimum(self.upper[free], np.pi)
-            # Seeded per attempt: a solve depends only on its problem and start.
-            rng = np.random.default_rng((self.seed, attempt))
-            q[free] = 0.5 * (q[free] + rng.uniform(lo, hi))
-        untouched = np.setdiff1d(np.arange(self.model.nv), free)
-        q[untouched] = q_start[untouched]
-        return np.clip(q, self.lower, self.upper)
+    def _restart_points(self, problem, q_start, free, restarts):
+        """(start, from the seeder) of the restarts, in order: the start again (with
+        self-collision off at first); then, from two restarts up, ``restarts - 1`` generic
+        starts with every start of the ``seeder`` (other arm branches; asked for only now,
+        and only when the problem has no ``seeds`` of its own) between them, a generic one
+        after every ``SEEDS_PER_GENERIC`` seeds. The generic starts are the natural posture,
+        then random postures halfway between it and a uniform sample of the joint ranges."""
+        if restarts < 1:
+            return
+        yield q_start.copy(), False
+        if restarts < 2:
+            return
+        # A problem with seeds of its own (the realizer's) has its starts chosen already.
+        ask = self.seeder is not None and not problem.seeds
+        seeds = self.seeder(self, problem, q_start) if ask else ()
+        generic = ((q, False) for q in
+                   itertools.islice(self._generic_starts(q_start, free), restarts - 1))
+        for k, q in enumerate(seeds, 1):
+            yield q, True
+            if k % SEEDS_PER_GENERIC == 0:
+                yield from itertools.islice(generic, 1)
+        yield from generic
 
-    def _lm(self, q, plan, history, posture=0.0, stop=0.05) -> LMRun:
+    def _generic_starts(self, q_start, free):
+        """The natural posture (unless it is the start), then random postures (endless)."""
+        untouched = np.setdiff1d(np.arange(self.model.nv), free)
+        attempt = 1
+        while True:
+            attempt += 1
+            q = self.natural.copy()
+            if attempt > 2 or np.allclose(q[free], q_start[free]):
+                lo = np.maximum(self.lower[free], -np.pi)
+                hi = np.minimum(self.upper[free], np.pi)
+                # Seeded per attempt: a solve depends only on its problem and start.
+                rng = np.random.default_rng((self.seed, attempt))
+                q[free] = 0.5 * (q[free] + rng.uniform(lo, hi))
+            q[untouched] = q_start[untouched]
+            yield np.clip(q, self.lower, self.upper)
+
+    def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True) -> LMRun:
         """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
         ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
         under ``stop`` (its tolerance fraction).
@@ -446,12 +510,13 @@ class Solver:
         of ``J^T J`` (``MU0``) times the joint weights, steps from ``mju_boxQP`` inside the
         joint ranges and a ``MAX_STEP`` trust region, Nielsen's damping update; it stops when
         done, after three steps of little gain (one with the guide on), or when the damping
-        or the step vanish."""
+        or the step vanish; with ``early`` also once met and slow (``MET_GAIN``) or slow far
+        from the tolerances (``FAR_COST``, ``FAR_GAIN``)."""
         free = plan.free
         q_out, cost, done, it, met, hist = plan.core.lm(
             np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
             self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
-            float(posture), float(stop), int(self.max_iter), plan.collide,
+            float(posture), float(stop), int(self.max_iter), plan.collide, early,
         )  # fmt: skip
         history.extend(hist)
         return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))
@@ -574,16 +639,15 @@ def _axis_target(e):
         if f is not None and c != 0.0 and f[0] == "axis":
             return "axis", f[1], f[2], f[3] * np.sign(c)
     if isinstance(e, BodyAxis):
-        loc = np.asarray(e.local, float)
-        n = np.linalg.norm(loc)
-        return ("axis", e.body, loc / n, 1.0) if n >= 1e-12 else None
+        n = math.hypot(*e.local)
+        return ("axis", e.body, np.asarray(e.local, float) / n, 1.0) if n >= 1e-12 else None
     flat = _flat_point(e)
     if flat is None:
         return None
     const, terms = flat
     if terms:
         return "point", const, terms
-    n = np.linalg.norm(const)
+    n = math.hypot(*const.tolist())
     return "const", (const / n if n >= 1e-12 else np.zeros(3))
 
 

@@ -10,10 +10,9 @@ import functools
 
 @functools.cache
 def core():
-    """The ``azee_mj._ikcore`` extension, with LAPACK's ``dgesdd`` (from SciPy) handed to it;
-    a clear ImportError when the package was not built."""
+    """The ``azee_mj._ikcore`` extension; a clear ImportError when the package was not
+    built."""
     import mujoco  # noqa: F401  (loads libmujoco, which the extension links against)
-    import scipy.linalg.cython_lapack as lapack
 
     try:
         from azee_mj import _ikcore
@@ -22,5 +21,4 @@ def core():
             "azee_mj's compiled solver core is not built: run `pip install -e .` (or "
             "`python setup.py build_ext --inplace`) in the source tree; it needs a C compiler"
         ) from e
-    _ikcore.set_lapack(lapack.__pyx_capi__["dgesdd"])
     return _ikcore

@@ -76,10 +76,11 @@ def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
 
 
 def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: np.ndarray,
-             target: np.ndarray, facing: tuple[np.ndarray, float] | None = None
-             ) -> dict[str, float] | None:
+             target: np.ndarray, facing: tuple[np.ndarray, float] | None = None,
+             swivel: float | None = None) -> dict[str, float] | None:
     """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
-    posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel.
+    posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel
+    (``swivel`` [rad] from the elbow hanging down, outward positive; None: ``SWIVEL_OUT``).
 
     The wrist goes short of ``target`` by the hand point's distance from the wrist, on the
     line from a point ``APPROACH`` in front of the shoulder (a straight wrist). With
@@ -126,7 +127,8 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     side = np.cross(n, down)
     if side[1] * arm.out < 0:
         side = -side
-    elbow = n * a1 + rho * (np.cos(SWIVEL_OUT) * down + np.sin(SWIVEL_OUT) * side)
+    sw = SWIVEL_OUT if swivel is None else swivel
+    elbow = n * a1 + rho * (np.cos(sw) * down + np.sin(sw) * side)
     u = elbow / l1
     # u = (cos a sin f, -sin a, -cos a cos f) in the rest frame; mirrored on the left.
     abd = float(np.arcsin(np.clip(-u[1] * -arm.out, -1.0, 1.0)))
@@ -346,3 +348,61 @@ def _head_on(solver: ik.Solver, arm: Arm, place: cn.Place, cons):
     tbody = solver.body_id(o.vector.body)
     normal = d.xmat[tbody].reshape(3, 3) @ np.asarray(o.vector.local, float)
     return normal / np.linalg.norm(normal), float(o.tol)
+
+
+#: Elbow swivels tried, in this order, when a solve fails from its warm start [rad, from
+#: ``SWIVEL_OUT``]: the natural one, a quarter turn either way, the opposite side.
+SWIVEL_RETRIES = (0.0, -np.pi / 2, np.pi / 2, np.pi)
+#: Turns of a placed hand tried when a solve fails [rad]: (forearm pronation, wrist
+#: flexion), each either way; a hand that meets its contact from the wrong side (a finger
+#: under the other hand, in front of the face) needs another face toward it.
+HAND_TURNS = (1.2, 0.8)
+
+
+def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
+                 q0: np.ndarray, turns=None) -> list[np.ndarray]:
+    """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: first every
+    free arm in its natural two-bone posture for its hand's first placement
+    (:func:`arm_seeds`); then ``q0`` with each placed hand turned by ``HAND_TURNS`` (about
+    the forearm, then at the wrist, each way; ``turns`` maps an arm to its (pronation,
+    wrist flexion) joint names, None: no turns); then one free arm at a time (the rest as
+    in ``q0``) in its two-bone posture at each swivel of ``SWIVEL_RETRIES``, its hand at the
+    target of the first placement of a site on it, then its wrist kept where it is.
+    ``hand_of(site)`` is the arm whose hand carries a model site, or None."""
+    m, d = solver.model, solver.data
+    d.qpos[:] = q0
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    free = set(solver.free_dofs(problem).tolist())
+    goals: dict[Arm, list[tuple[np.ndarray, np.ndarray]]] = {}  # (hand point, target)
+    for arm in arms:
+        if not all(solver.joint_info(j)[1] in free for j in (arm.flex, arm.abd, arm.rot,
+                                                              arm.elbow)):  # fmt: skip
+            continue
+        wrist = d.xpos[solver.body_id(arm.hand)].copy()
+        goals[arm] = [(wrist, wrist)]
+    k = solver.kinematics()
+    for c in problem.constraints:
+        if isinstance(c, cn.Place) and (arm := hand_of(c.site)) in goals and len(goals[arm]) < 2:
+            goals[arm].insert(0, (d.site_xpos[solver.site_id(c.site)].copy(), k.value(c.target)))
+    joints = [j for a in goals for j in (a.flex, a.abd, a.rot, a.elbow)]
+    out = list(arm_seeds(solver, list(goals), problem.constraints, joints, q0, hand_of))
+    for arm, pairs in goals.items():
+        if len(pairs) < 2 or arm not in (turns or {}):
+            continue  # no placement on this hand
+        for j, turn in zip(turns[arm], HAND_TURNS):
+            qadr, dof, _ = solver.joint_info(j)
+            if dof in free:
+                for sign in (1.0, -1.0):
+                    q = q0.copy()
+                    q[qadr] += sign * turn
+                    out.append(q)
+    for off in SWIVEL_RETRIES:
+        for arm, pairs in goals.items():
+            for point, target in pairs:
+                sol = arm_seed(m, d, arm, point, target, swivel=SWIVEL_OUT + off)
+                q = q0.copy()
+                for j, v in (sol or {}).items():
+                    q[solver.joint_info(j)[0]] = v
+                out.append(q)
+    return out

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from azee_mj import constraints as cn
-from azee_mj import ik, natural
+from azee_mj import ik, natural, reach
 from azee_mj import score as sc
 from azee_mj.kinematics import compile_point, compile_vector
 from azee_mj.model import MODEL_PATH
@@ -47,7 +47,37 @@ def make_solver(
     solver = ik.Solver(MODEL_PATH if model is None else model, joint_weights=joint_weights(smap),
                        **options)  # fmt: skip
     solver.set_naturalness(natural.from_signer_map(solver.model, smap, solver.natural))
+    if "seeder" not in options:
+        solver.seeder = branch_seeder(solver, smap)
     return solver
+
+
+def branch_seeder(solver: ik.Solver, smap: SignerMap):
+    """The solver's ``seeder`` for a signer: when a solve fails from its warm start, the
+    placed hands turned and each arm on other elbow-swivel branches
+    (:func:`azee_mj.reach.swivel_seeds`)."""
+    m = solver.model
+    arms = [a for a in reach.arms_of(smap)
+            if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, a.hand) >= 0]  # fmt: skip
+    if not arms:
+        return None
+    hands = [(a, solver.body_id(a.hand)) for a in arms]
+    # each arm's forearm pronation and wrist flexion: the track's joints after the elbow
+    turns = {}
+    for a in arms:
+        track = next((t for t in smap.tracks.values() if a.elbow in t), ())
+        k = list(track).index(a.elbow) if track else -1
+        if 0 <= k and k + 2 < len(track):
+            turns[a] = (track[k + 1], track[k + 2])
+    cache: dict[str, reach.Arm | None] = {}
+
+    def hand_of(site: str):
+        if site not in cache:
+            body = int(m.site_bodyid[solver.site_id(site)])
+            cache[site] = next((a for a, h in hands if descends(m, body, h)), None)
+        return cache[site]
+
+    return lambda s, problem, q: reach.swivel_seeds(s, arms, hand_of, problem, q, turns)
 
 
 # ---------------------------------------------------------------------------------------

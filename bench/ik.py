@@ -12,7 +12,9 @@ On ``make_keyframes(n, seed)`` (a seeded *sequence* of reachable keyframes, see
 
 and scores every method's posture with the same evaluator (our solver's residual report):
 success = every constraint within 1 mm / 1 deg and penetration <= 1 mm outside the body
-pairs a contact brings together. ``--quick`` runs 30 keyframes and writes nothing unless
+pairs a contact brings together. Time is wall time per solve (the solver's own) and, beside
+it, the process's CPU time (``time.thread_time``), which other jobs on a shared machine
+inflate less. ``--quick`` runs 30 keyframes and writes nothing unless
 ``--out`` is given; the full run writes ``bench/results/ik.json``.
 """
 
@@ -49,7 +51,8 @@ RANGE_EPS = 1e-4  # [rad] a joint further than this outside its range counts as 
 PEN_LIMIT = 1e-3  # [m]
 #: Published reference (Blender iTaSC): (label, problems, total seconds); 1 cm / 5 deg.
 REFERENCES = (("Blender/iTaSC, 11 problems", 11, 2.76), ("Blender/iTaSC, 152 problems", 152, 9.97))
-TARGETS = {"success": 0.99, "median_ms": 2.0, "p90_ms": 10.0, "range_violations": 0,
+#: Issue 10 (success) and issue 11 (warm time on one core).
+TARGETS = {"success": 0.99, "median_ms": 1.5, "p90_ms": 8.0, "range_violations": 0,
            "penetrations": 0}  # fmt: skip
 
 
@@ -110,8 +113,11 @@ def run_ours(solver, kfs, warm: bool):
     out, hist = [], []
     q = solver.natural.copy()
     for kf in kfs:
+        c0 = time.thread_time()
         r = solver.solve(kf.problem, q if warm else solver.natural)
+        cpu = time.thread_time() - c0
         rec = score(solver, kf, r.qpos, r.time, r.iterations)
+        rec["cpu_ms"] = cpu * 1e3
         rec["restarts"] = r.restarts
         rec["converged_flag"] = bool(r.converged)
         out.append(rec)
@@ -125,14 +131,18 @@ def run_baseline(solver, method, kfs):
     out = []
     q = solver.natural.copy()
     for kf in kfs:
+        c0 = time.thread_time()
         qs, iters, t = method.solve(kf.problem, q)
+        cpu = time.thread_time() - c0
         out.append(score(solver, kf, qs, t, iters))
+        out[-1]["cpu_ms"] = cpu * 1e3
         q = qs
     return out
 
 
 def summarise(recs: list[dict]) -> dict:
     t = np.array([r["time_ms"] for r in recs])
+    cpu = np.array([r["cpu_ms"] for r in recs])
     place = np.concatenate([r["place_mm"] for r in recs])
     angle = np.concatenate([r["angle_deg"] for r in recs])
     it = np.array([r["iterations"] for r in recs])
@@ -148,6 +158,7 @@ def summarise(recs: list[dict]) -> dict:
         "median_place_mm": float(np.median(place)), "worst_place_mm": float(place.max()),
         "median_angle_deg": float(np.median(angle)), "worst_angle_deg": float(angle.max()),
         "median_ms": float(np.median(t)), "p90_ms": float(np.percentile(t, 90)),
+        "cpu_median_ms": float(np.median(cpu)), "cpu_p90_ms": float(np.percentile(cpu, 90)),
         "mean_ms": float(t.mean()), "max_ms": float(t.max()), "total_s": float(t.sum() / 1e3),
         "range_violations": int(sum(r["range_violations"] for r in recs)),
         "keyframes_with_range_violations": int(sum(r["range_violations"] > 0 for r in recs)),
@@ -190,10 +201,11 @@ def table(summary: dict, ours_key="ours-warm") -> str:
     ours = summary[ours_key]
     lines = [
         "| method | solved 1 mm / 1 deg | solved 1 cm / 5 deg | place mm median / worst "
-        "| angle deg median / worst | ms median / p90 | range violations (max overrun deg) "
+        "| angle deg median / worst | ms median / p90 | CPU ms median / p90 "
+        "| range violations (max overrun deg) "
         "| penetrations > 1 mm (max mm) | median time ratio to ours-warm | success diff (pp) "
         "| trunk deg median / worst | head deg median / worst | RULA <= 4 |",
-        "|" + " --- |" * 13,
+        "|" + " --- |" * 14,
     ]
     for name, s in summary.items():
         r = ratios(s, ours)
@@ -203,6 +215,7 @@ def table(summary: dict, ours_key="ours-warm") -> str:
             f"| {s['median_place_mm']:.3f} / {s['worst_place_mm']:.1f} "
             f"| {s['median_angle_deg']:.3f} / {s['worst_angle_deg']:.1f} "
             f"| {s['median_ms']:.2f} / {s['p90_ms']:.2f} "
+            f"| {s['cpu_median_ms']:.2f} / {s['cpu_p90_ms']:.2f} "
             f"| {s['range_violations']} ({s['max_range_overrun_deg']:.1f}) "
             f"| {s['penetrations']} ({s['max_penetration_mm']:.1f}) "
             f"| {r['median_time_ratio']:.2f} | {r['success_diff_pp']:+.1f} "
@@ -213,7 +226,7 @@ def table(summary: dict, ours_key="ours-warm") -> str:
     for label, n, total in REFERENCES:
         per = 1e3 * total / n
         lines.append(f"| {label} (published, 1 cm / 5 deg) | | | | | {per:.0f} per problem "
-                     f"| | | {per / ours['median_ms']:.0f} | |")  # fmt: skip
+                     f"| | | | {per / ours['median_ms']:.0f} | |")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -274,8 +287,8 @@ def main(argv=None) -> int:
         print(extra_counts)
     verdict = {
         "success >= 99 %": ours["success"] >= TARGETS["success"],
-        "median <= 2 ms": ours["median_ms"] <= TARGETS["median_ms"],
-        "p90 <= 10 ms": ours["p90_ms"] <= TARGETS["p90_ms"],
+        f"median <= {TARGETS['median_ms']} ms": ours["median_ms"] <= TARGETS["median_ms"],
+        f"p90 <= {TARGETS['p90_ms']:.0f} ms": ours["p90_ms"] <= TARGETS["p90_ms"],
         "zero range violations": ours["range_violations"] == 0,
         "zero penetrations > 1 mm": ours["penetrations"] == 0,
     }

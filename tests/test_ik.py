@@ -211,6 +211,7 @@ def test_pose_check_finds_a_penetration_made_on_purpose(solver):
 def test_compiled_constants_are_the_solvers():
     core = native.core()
     assert (core.MU0, core.MAX_STEP, core.COLLISION_TOL) == (ik.MU0, ik.MAX_STEP, cn.COLLISION_TOL)
+    assert (core.MET_GAIN, core.FAR_COST, core.FAR_GAIN) == (ik.MET_GAIN, ik.FAR_COST, ik.FAR_GAIN)
 
 
 def _penetrating_posture(solver, depth=0.01):

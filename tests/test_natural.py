@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
@@ -13,6 +17,8 @@ from azee_mj import ergonomics, ik, mirror, natural, reach, timeline
 from azee_mj.kinematics import Const, Lin, SitePos
 from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
+
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -232,6 +238,93 @@ def test_two_bone_seed_puts_the_wrist_on_target_with_the_elbow_below(solver):
             line = (target - shoulder) / np.linalg.norm(target - shoulder)
             below = elbow - shoulder - line * ((elbow - shoulder) @ line)
             assert below[2] < 0.0  # the elbow hangs below the shoulder-wrist line
+
+
+def test_two_bone_seed_turns_the_elbow_by_its_swivel(solver):
+    m, d = solver.model, mujoco.MjData(solver.model)
+    arm = reach.arms_of(DEFAULT_MAP)[0]
+    _fk(m, d, solver.natural)
+    shoulder = d.xpos[solver.body_id(arm.upper)].copy()
+    target = shoulder + np.array([0.3, -0.1, -0.15])
+    wrist = d.xpos[solver.body_id(arm.hand)].copy()
+    line = (target - shoulder) / np.linalg.norm(target - shoulder)
+    down = np.array([0.0, 0.0, -1.0]) - line * -line[2]
+    down /= np.linalg.norm(down)
+    for swivel in (0.0, 0.7, -1.2, 2.5):
+        _fk(m, d, solver.natural)
+        q = solver.natural.copy()
+        for j, v in reach.arm_seed(m, d, arm, wrist, target, swivel).items():
+            q[solver.joint_id(j)] = v
+        _fk(m, d, q)
+        np.testing.assert_allclose(d.xpos[solver.body_id(arm.hand)], target, atol=1e-9)
+        off = d.xpos[solver.body_id(arm.fore)] - shoulder
+        off -= line * (off @ line)
+        # the swivel is the elbow's angle from hanging straight down, outward positive
+        outward = np.cross(line, down) * (1 if np.cross(line, down)[1] * arm.out > 0 else -1)
+        assert np.arctan2(off @ outward, off @ down) == pytest.approx(swivel, abs=1e-6)
+
+
+def test_restarts_try_the_seeders_branches_and_keep_them_only_when_met(solver):
+    # The palm far out of reach: no start meets it.
+    calls = []
+    seeder = solver.seeder
+
+    def spy(s, problem, q):
+        out = seeder(s, problem, q)
+        calls.append(len(out))
+        return out
+
+    far = cn.Place("PA_R", Const((0.9, -0.3, 1.0)), 1e-3, "far")
+    arm = tuple(DEFAULT_MAP.tracks["arm_R"])
+    solver.seeder = spy
+    try:
+        plain = solver.solve(ik.IKProblem((far,), arm, restarts=1), solver.natural)
+        assert calls == [] and plain.restarts == 1  # one restart: the start again only
+        res = solver.solve(ik.IKProblem((far,), arm, restarts=3), solver.natural)
+        # both arms' seed, the hand turned 4 ways, 4 swivels x (to the target, wrist kept)
+        assert calls == [1 + 4 + len(reach.SWIVEL_RETRIES) * 2]
+        assert res.restarts == 3 + calls[0]
+        # a problem with starts of its own does not ask the seeder
+        solver.solve(ik.IKProblem((far,), arm, seeds=(solver.natural,), restarts=3),
+                     solver.natural)  # fmt: skip
+        assert len(calls) == 1
+        # A failed seed never wins: the residual is the generic restarts' one.
+        solver.seeder = None
+        generic = solver.solve(ik.IKProblem((far,), arm, restarts=3), solver.natural)
+        assert res.residuals[0].value == pytest.approx(generic.residuals[0].value, abs=1e-9)
+    finally:
+        solver.seeder = seeder
+
+
+def _stored_problem(path) -> tuple[ik.IKProblem, np.ndarray]:
+    doc = json.loads(path.read_text())
+    cons = []
+    for c in doc["constraints"]:
+        target = c.get("target", c.get("vector"))
+        expr = Const(tuple(target["const"])) if "const" in target else SitePos(target["site"])
+        if "place" in c:
+            cons.append(cn.Place(c["place"], expr, c["tol"], c["label"]))
+        else:
+            cons.append(cn.Orient(c["orient"], tuple(c["local"]), cn.Rel(c["rel"]), expr, c["tol"],
+                                  c["label"]))  # fmt: skip
+    return ik.IKProblem(tuple(cons), tuple(doc["free_joints"])), np.array(doc["start"])
+
+
+@pytest.mark.parametrize("name", ["branch_keyframe", "blocked_contact"])
+def test_a_start_on_another_branch_is_met_from_the_seeders_starts(solver, name):
+    # Benchmark keyframes and the warm starts a chain reached them from: an arm on another
+    # branch, fingers meeting interlocked. The start and the generic restarts miss; a
+    # two-bone arm seed, a turned hand meet them.
+    problem, start = _stored_problem(DATA / f"{name}.json")
+    seeder = solver.seeder
+    solver.seeder = None
+    try:
+        generic = solver.solve(dataclasses.replace(problem, restarts=6), start)
+    finally:
+        solver.seeder = seeder
+    assert not generic.converged
+    res = solver.solve(problem, start)
+    assert res.converged and res.restarts >= 2
 
 
 def test_a_per_frame_solve_stays_within_its_step(solver):

@@ -176,15 +176,19 @@ class Motion:
         paths = {b.path: self.transpath_points(b, q, times) for b in tp}
         sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
         limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
+        curve = q.copy()
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
             for tr in sorted(tracks):  # sorted: the same rows in any process
-                # While blending toward the next posture, keep what both postures keep.
-                key = next((k for k in keys[tr] if k.start <= t < k.end), None)
-                nxt = next((k for k in keys[tr] if k.start > t), None)
-                if key is not None:
-                    keep = [c for c in key.cons if nxt is None or c in nxt.cons]
+                # While blending, a key's constraints hold to its end, but for the joint
+                # targets (hand shapes) the posture the blend heads for does not keep:
+                # those joints are the blend's to move.
+                i = next((i for i, k in enumerate(keys[tr]) if k.start <= t < k.end), None)
+                if i is not None:
+                    key, goal = keys[tr][i], self._goal(keys[tr], i, self.track_dofs[tr])
+                    keep = [c for c in key.cons if goal is None or c in goal.cons
+                            or not isinstance(c, cn.JointTarget)]  # fmt: skip
                     cons += [c for c in keep if c not in cons]
                     free |= set(key.free)
             for b in tp:
@@ -218,15 +222,47 @@ class Motion:
                                           max_change=0.5 * self.frame_step, restarts=0).qpos
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
-            soft = self.soft_targets(q[f], free)
+            # The joints the constraints move start from the frame before (final by now),
+            # advanced by the blend's step: the same branch, moving with the blend as far as
+            # the constraints let them (a solve that starts where its constraints are met
+            # stops at once and would leave them still until the next key). The others
+            # follow the blend, at most a step a frame from the frame before.
+            needed = set(self.solver.free_dofs(ik.IKProblem(tuple(cons))).tolist())
+            moved = sorted(j for j in free if self._dofs([j])[0] in needed)
+            if not moved:  # nothing the constraints need moves here: all of it solves
+                moved = sorted(free)
+            rest = sorted(set(free) - set(moved))
             q0 = q[f].copy()
-            if f > 0:  # from the frame before (final by now): the same branch
+            if f > 0:
+                before, step = q[f - 1], self.frame_step
+                d = self._dofs(moved)
+                q0[d] = before[d] + np.clip(curve[f][d] - curve[f - 1][d], -step, step)
+                if rest:
+                    d = self._dofs(rest)
+                    q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
+            res = self.solve(cons + self.soft_targets(q[f], moved), moved, q0, t,
+                             max_change=self.frame_step, restarts=FRAME_RESTARTS)  # fmt: skip
+            if rest and not res.converged and res.penetration > cn.PENETRATION_LIMIT:
+                # the blend goes through the body: every joint may push it out
+                res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
+                                 max_change=self.frame_step, restarts=FRAME_RESTARTS)  # fmt: skip
+            if f > 0 and np.abs(res.qpos - q[f - 1]).max() > self.frame_step + 1e-9:
+                # a constraint far from the frame before (a key's hand shape that the blend
+                # reaches late): from the frame before, at most a step
                 d = self._dofs(free)
                 q0[d] = q[f - 1][d]
-            res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step,
-                             restarts=FRAME_RESTARTS)  # fmt: skip
+                res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
+                                 max_change=self.frame_step, restarts=FRAME_RESTARTS)  # fmt: skip
             q[f] = res.qpos
         return q
+
+    def _goal(self, tkeys: list[Key], i: int, dofs: np.ndarray) -> Key | None:
+        """The key a track's blend from key ``i`` heads for: the first after the keys that
+        hold key ``i``'s posture on without a gap (None: the last posture)."""
+        for a, b in zip(tkeys[i:], tkeys[i + 1 :]):
+            if abs(a.end - b.start) > 1e-9 or not np.allclose(a.q[dofs], b.q[dofs], atol=SAME_POSTURE):
+                return b
+        return None
 
     def _dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names."""

@@ -2,8 +2,9 @@
 
 Each track holds its key posture while driven and moves between postures with a
 minimum-jerk blend; frames where a blending track still has constraints (an overlapping
-block, a transpath path point, a permanent hand shape) are solved with the blend as a soft
-target; trills are added last. :class:`Motion` does this on a
+block, a transpath path point, a permanent hand shape) are solved for the joints those
+constraints need, nearest the blend (:class:`CurvePreference`), the other joints on the
+blend; trills are added last. :class:`Motion` does this on a
 :class:`~azee_mj.schedule.Schedule`.
 
 Units: seconds, metres, radians.

@@ -2,8 +2,9 @@
 
 Each track holds its key posture while driven and moves between postures with a
 minimum-jerk blend; frames where a blending track still has constraints (an overlapping
-block, a transpath path point, a permanent hand shape) are solved with the blend as a soft
-target; trills are added last. :class:`Motion` does this on a
+block, a transpath path point, a permanent hand shape) are solved for the joints those
+constraints need, nearest the blend (:class:`CurvePreference`), the other joints on the
+blend; trills are added last. :class:`Motion` does this on a
 :class:`~azee_mj.schedule.Schedule`.
 
 Units: seconds, metres, radians.
@@ -36,6 +37,9 @@ BLEND_SPEED = 12.0
 MAX_JOINT_SPEED = 20.0
 #: Restarts of a per-frame solve (inside its step box) when its start does not converge.
 FRAME_RESTARTS = 1
+#: How far from its blend curve a joint a constrained blend solves may go [rad] before the
+#: pull back counts as much as a constraint at its tolerance (a preference row of 1).
+CURVE_TOL = 0.05
 
 
 class Mode(enum.Enum):
@@ -63,6 +67,25 @@ def minjerk(u: np.ndarray | float):
     return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class CurvePreference:
+    """Joints near their values on a blend curve, as a preference of an IK problem (rows
+    ``(q - values) / tol`` that join the naturalness objective): among the postures that
+    meet the constraints, the solver takes the one nearest the blend."""
+
+    qposadr: np.ndarray  # (n,) the joints' qpos addresses
+    dofadr: np.ndarray  # (n,) their dof addresses
+    values: np.ndarray  # (n,) the curve's values [rad or m]
+    tol: float  # [rad or m]: a row is 1 this far from the curve
+
+    def rows(self, k) -> tuple[np.ndarray, np.ndarray]:
+        """Rows and their Jacobian (n, nv) on the posture of kinematics ``k``."""
+        n = len(self.dofadr)
+        J = np.zeros((n, k.m.nv))
+        J[np.arange(n), self.dofadr] = 1.0 / self.tol
+        return (k.d.qpos[self.qposadr] - self.values) / self.tol, J
+
+
 class Motion:
     """Frames from key postures on ``schedule`` (``mode`` flattened or multitrack); every IK
     result solved for them is kept in ``results``."""
@@ -79,13 +102,15 @@ class Motion:
         self.frame_step = MAX_JOINT_SPEED / fps
 
     def solve(self, cons, free, q0, t: float, seeds=(), max_change=None,
-              natural: bool = True, preferences=(), restarts=None) -> ik.IKResult:  # fmt: skip
+              natural: bool = True, preferences=(), restarts=None, prefer=None) -> ik.IKResult:  # fmt: skip
         """Solve ``cons`` moving joints ``free`` from ``q0`` (and ``seeds``, other starts),
         allowing the contacts of time ``t`` [s], each joint within ``max_change`` of ``q0``
         if given; every result is kept in ``results``."""
         problem = self.problem(cons, free, q0, t, seeds, max_change, natural, preferences)
         if restarts is not None:
             problem = dataclasses.replace(problem, restarts=restarts)
+        if prefer is not None:
+            problem = dataclasses.replace(problem, prefer=prefer)
         res = self.solver.solve(problem, q0)
         self.results.append(res)
         return res
@@ -97,6 +122,11 @@ class Motion:
         touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
         return ik.IKProblem(tuple(cons), tuple(free), touching, q0, tuple(seeds), max_change,
                             natural, preferences=tuple(preferences))  # fmt: skip
+
+    def curve_preference(self, qf: np.ndarray, joints) -> CurvePreference:
+        """A preference for ``joints`` at their values in posture ``qf`` (a blend's frame)."""
+        adr = self.m.jnt_qposadr[[self.solver.joint_id(j) for j in joints]]
+        return CurvePreference(adr, self._dofs(joints), qf[adr].copy(), CURVE_TOL)
 
     def soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
         """Soft targets keeping ``joints`` near posture ``qf`` (a blend to follow)."""
@@ -176,15 +206,19 @@ class Motion:
         paths = {b.path: self.transpath_points(b, q, times) for b in tp}
         sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
         limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
+        curve = q.copy()
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
             for tr in sorted(tracks):  # sorted: the same rows in any process
-                # While blending toward the next posture, keep what both postures keep.
-                key = next((k for k in keys[tr] if k.start <= t < k.end), None)
-                nxt = next((k for k in keys[tr] if k.start > t), None)
-                if key is not None:
-                    keep = [c for c in key.cons if nxt is None or c in nxt.cons]
+                # While blending, a key's constraints hold to its end, but for the joint
+                # targets (hand shapes) the posture the blend heads for does not keep:
+                # those joints are the blend's to move.
+                i = next((i for i, k in enumerate(keys[tr]) if k.start <= t < k.end), None)
+                if i is not None:
+                    key, goal = keys[tr][i], self._goal(keys[tr], i, self.track_dofs[tr])
+                    keep = [c for c in key.cons if goal is None or c in goal.cons
+                            or not isinstance(c, cn.JointTarget)]  # fmt: skip
                     cons += [c for c in keep if c not in cons]
                     free |= set(key.free)
             for b in tp:
@@ -218,15 +252,46 @@ class Motion:
                                           max_change=0.5 * self.frame_step, restarts=0).qpos
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
-            soft = self.soft_targets(q[f], free)
-            q0 = q[f].copy()
-            if f > 0:  # from the frame before (final by now): the same branch
-                d = self._dofs(free)
+            # The joints the constraints move start from the frame before (final by now),
+            # advanced by the blend's step (the same branch), and among the postures that
+            # meet the constraints take the one nearest the blend: a solve that starts where
+            # its constraints are met stops at once, and would leave them still until the
+            # next key. The others follow the blend, at most a step a frame from the frame
+            # before.
+            needed = set(self.solver.free_dofs(ik.IKProblem(tuple(cons))).tolist())
+            moved = sorted(j for j in free if self._dofs([j])[0] in needed) or sorted(free)
+            rest = sorted(set(free) - set(moved))
+            step, q0 = self.frame_step, q[f].copy()
+            if f > 0:
+                before = q[f - 1]
+                d = self._dofs(moved)
+                q0[d] = before[d] + np.clip(curve[f][d] - curve[f - 1][d], -step, step)
+                if rest:
+                    d = self._dofs(rest)
+                    q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
+            res = self.solve(cons, moved, q0, t, max_change=step, restarts=FRAME_RESTARTS,
+                             preferences=(self.curve_preference(q[f], moved),), prefer=q[f])  # fmt: skip
+            if rest and not res.converged and res.penetration > cn.PENETRATION_LIMIT:
+                # the blend goes through the body: every joint may push it out
+                res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
+                                 max_change=step, restarts=FRAME_RESTARTS)  # fmt: skip
+            d = self._dofs(sorted(free))
+            if f > 0 and np.abs(res.qpos[d] - q[f - 1][d]).max() > step + 1e-9:
+                # a constraint far from the frame before (a key's hand shape that the blend
+                # reaches late): from the frame before, at most a step
                 q0[d] = q[f - 1][d]
-            res = self.solve(cons + soft, sorted(free), q0, t, max_change=self.frame_step,
-                             restarts=FRAME_RESTARTS)  # fmt: skip
+                res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
+                                 max_change=step, restarts=FRAME_RESTARTS)  # fmt: skip
             q[f] = res.qpos
         return q
+
+    def _goal(self, tkeys: list[Key], i: int, dofs: np.ndarray) -> Key | None:
+        """The key a track's blend from key ``i`` heads for: the first after the keys that
+        hold key ``i``'s posture on without a gap (None: the last posture)."""
+        for a, b in zip(tkeys[i:], tkeys[i + 1 :]):
+            if abs(a.end - b.start) > 1e-9 or not np.allclose(a.q[dofs], b.q[dofs], atol=SAME_POSTURE):
+                return b
+        return None
 
     def _dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names."""

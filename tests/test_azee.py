@@ -323,6 +323,20 @@ def test_compiled_scores_realize_within_tolerance(text, model):
     assert not report.penetrations, report.penetrations[:3]
 
 
+@pytest.mark.parametrize("side", ["R", "L"])
+@pytest.mark.parametrize("text", [
+    ":info-about(:cinema, :bien, 'hold 0)", ":side-by-side('left :cinema, 'right :bien)",
+    ":side-by-side('left :nb-5, 'right :nb-2)",
+])  # fmt: skip
+def test_a_hand_shape_or_gaze_change_with_no_gap_stays_under_25_rad_per_s(text, side, model):
+    """An open hand held to the end of a sign, then a fist or a V at once (and a gaze from
+    one locus to the other): the blend between them is followed, no joint snaps."""
+    r = realize(compile_text(text, strong_side=side), fps=50.0, solver=make_solver())
+    hinge = model.jnt_qposadr[model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE]
+    assert np.abs(np.diff(r.qpos[:, hinge], axis=0)).max() * r.fps < 25.0
+    assert all(t.ok for t in r.traces), [t.describe() for t in r.traces if not t.ok]
+
+
 # ---------------------------------------------------------------------------------------
 # Errors: one message, exit 2, no output file
 # ---------------------------------------------------------------------------------------

@@ -123,6 +123,27 @@ def test_skin_sites_outside_the_rest_of_the_body_at_rest(model, data):
     assert {"PA_R", "H_BACK_L", "MO", "CK_R", "ST_R", "I_TIP_R", "T_PAD_L"}.isdisjoint(inside)
 
 
+@pytest.mark.parametrize("side", ["R", "L"])
+def test_shoulder_and_ear_sites_face_the_front_where_a_hand_meets_them(model, data, side):
+    """``SH`` is on the front of the shoulder's cap (the acromion's sphere), ``EAR`` on the
+    front rim of the ear: a fingertip meets them coming from the front, the elbow low
+    (mjcf/README.md, "Sites"); on the top of the cap or the side of the ear it had to point
+    down or across from beside the head, the elbow at or above the shoulder."""
+    mujoco.mj_kinematics(model, data)
+    lateral = -1.0 if side == "R" else 1.0
+    for name, shape in (("SH", mujoco.mjtGeom.mjGEOM_SPHERE),
+                        ("EAR", mujoco.mjtGeom.mjGEOM_ELLIPSOID)):  # fmt: skip
+        s = model.site(DEFAULT_MAP.sites[f"{name}_{side}"])
+        dist, n, g = skin_distance(model, data, s.bodyid[0], data.site_xpos[s.id])
+        assert abs(dist) <= ON_SKIN and model.geom_type[g] == shape, name
+        elevation = np.degrees(np.arcsin(n[2]))
+        forward = np.degrees(np.arctan2(n[0], lateral * n[1]))  # from the side toward the front
+        if name == "SH":
+            assert n[0] > abs(n[1]) and 15.0 <= elevation <= 45.0, (name, n)
+        else:
+            assert forward >= 45.0 and -30.0 <= elevation <= 0.0, (name, n)
+
+
 def test_distance_helpers_against_known_shapes():
     sph, cap = mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CAPSULE
     ell, box = mujoco.mjtGeom.mjGEOM_ELLIPSOID, mujoco.mjtGeom.mjGEOM_BOX

@@ -111,6 +111,9 @@ NECK_RAD = 0.045
 #: Hair cap (collision too: the top and back of the head are hair), ears, nose base.
 HAIR = (np.array([-0.022, 0.0, 0.718]), np.array([0.098, 0.085, 0.090]))
 EAR_R_SHAPE = (np.array([-0.012, -0.079, 0.672]), np.array([0.013, 0.007, 0.027]))
+#: The right ear site's outward normal: turned 60 degrees forward from the side, 20 down.
+_F, _D = np.radians(60.0), np.radians(20.0)
+EAR_R_NORMAL = np.array([np.cos(_D) * np.sin(_F), -np.cos(_D) * np.cos(_F), -np.sin(_D)])
 NOSE_BASE = (np.array([0.096, 0.0, 0.651]), np.array([0.010, 0.013, 0.008]))
 #: The eyeball's collision radius: the closed lid's (the visual eyeball is 12 mm).
 EYE_RAD = 0.0125
@@ -126,6 +129,13 @@ def surface(ellipsoid, direction) -> np.ndarray:
     c, r = ellipsoid
     d = np.asarray(direction, float)
     return c + d / np.sqrt(np.sum((d / r) ** 2))
+
+
+def surface_normal(ellipsoid, normal) -> np.ndarray:
+    """The point of an ellipsoid whose outward normal is ``normal``."""
+    c, r = ellipsoid
+    n = unit(normal)
+    return c + r**2 * n / np.linalg.norm(r * n)
 
 
 def front(ellipsoid, y, z) -> np.ndarray:
@@ -410,7 +420,9 @@ def build_neck_head(b2: Body) -> Body:
         b.site("EYE_{X}", EYE_R + [EYE_RAD, 0, 0])
         b.site("TE_{X}", surface(CRANIUM, unit([0.55, -0.82, 0.12])))
         b.site("CK_{X}", front(FACE, -0.045, 0.648))
-        b.site("EAR_{X}", surface(EAR_R_SHAPE, [0, -1, 0.15]))
+        # EAR on the front rim of the ear, by the tragus, where an index meets it coming from
+        # the front and below (README.md, "Sites")
+        b.site("EAR_{X}", surface_normal(EAR_R_SHAPE, EAR_R_NORMAL))
         b.site("LOBE_{X}", surface(EAR_R_SHAPE, [0.3, -0.5, -1.0]))
         b.site("MO_{X}", front(FACE, -0.0245, 0.6195))
         b.site("NO_{X}", surface(NOSE_BASE, [0.3, -1.0, -0.2]))
@@ -590,8 +602,14 @@ def build_arm() -> Body:
     axis = unit(trap[3:] - trap[:3])
     acromion = trap[:3] + (0.140 - 0.035) / (0.150 - 0.035) * (trap[3:] - trap[:3])
     clav.geom(type="sphere", pos=acromion, size=[0.032], **shell())
+    # SH on the front of the cap, where a hand pats a shoulder: its normal turned 65 degrees
+    # forward from the cap's top (24 degrees above the horizontal), so that a fingertip
+    # meets it coming from the front and above with the elbow low (README.md, "Sites")
     up = np.array([0.0, 0.0, 1.0])
-    clav.site("SH_{X}", acromion + 0.032 * unit(up - np.dot(up, axis) * axis))
+    cap_top = unit(up - np.dot(up, axis) * axis)
+    turn = np.radians(65.0)
+    sh_normal = unit(np.cos(turn) * cap_top + np.sin(turn) * np.array([1.0, 0.0, 0.0]))
+    clav.site("SH_{X}", acromion + 0.032 * sh_normal)
 
     arm = clav.add(Body("arm_{X}", ARM_R, comment="upper arm: shoulder joint centre"))
     arm.joints = [

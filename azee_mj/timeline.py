@@ -74,9 +74,10 @@ FACING_TOL_BODY = 20.0
 #: below the eyes: (how far below [m], the height above that costs one unit [m]).
 ELBOW_LOW = (0.02, 0.05)
 #: Rounded parts of the body [deg]: a fingertip meets them from a range of directions
-#: around the site's normal (the shoulder's cap, the forehead's curve), as far as the
-#: fingertip's own roundness lets the site meet within its tolerance without sinking in.
-FACING_TOL_ROUNDED = {"SH": 45.0, "FH": 40.0}
+#: around the site's normal (the shoulder's cap, the forehead's and the temple's curve),
+#: as far as the fingertip's own roundness lets the site meet within its tolerance without
+#: sinking in.
+FACING_TOL_ROUNDED = {"SH": 45.0, "FH": 40.0, "TE": 40.0}
 
 
 def _facing_tol(a: str, b: str) -> float:

@@ -57,6 +57,16 @@ def test_an_index_on_the_forehead_comes_from_the_front_with_the_elbow_forward(so
     assert e.arm("R").elbow_above_shoulder < 0.05
 
 
+def test_an_index_on_the_temple_keeps_the_elbow_below_the_shoulder(solver, model):
+    # With the 20-degree fingertip rule the finger pointed straight into the side of the
+    # head and the elbow rose 43 mm above the shoulder (RULA 5).
+    q = held_posture(solver, "@I_TIP(s)", "@TE(s)", INDEX)
+    e = ergonomics(model, q)
+    assert e.rula.score <= 4, f"RULA {e.rula.score}"
+    assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
+    assert e.arm("R").elbow_above_shoulder < 0.0
+
+
 @pytest.mark.parametrize("site, strong", [("@PA(s)", FLAT), ("@I_TIP(s)", INDEX)],
                          ids=["palm-elbow-R", "index-tip-elbow-R"])  # fmt: skip
 def test_the_touched_arm_raises_its_forearm_in_front(solver, model, site, strong):

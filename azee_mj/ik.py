@@ -82,6 +82,8 @@ class IKProblem:
         tolerance), e.g. where two hands meet when nothing else says where.
       restarts: further generic attempts when none meets everything (None: the solver's
         own); from 2 up, the solver's ``seeder`` adds its starts to them.
+      bounds: (lower, upper), each (nq,): further bounds of the joints inside their ranges
+        [rad or m] (e.g. within reach of a later posture), None = none.
     """
 
     constraints: tuple[Constraint, ...]
@@ -96,6 +98,7 @@ class IKProblem:
     collide: bool = True
     preferences: tuple[Constraint, ...] = ()
     restarts: int | None = None
+    bounds: tuple[np.ndarray, np.ndarray] | None = dataclasses.field(default=None, compare=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -361,6 +364,16 @@ class Solver:
         if problem.max_change is not None:
             plan.lower = np.maximum(plan.lower, q_start - problem.max_change)
             plan.upper = np.minimum(plan.upper, q_start + problem.max_change)
+        if problem.bounds is not None:
+            plan.lower = np.maximum(plan.lower, problem.bounds[0])
+            plan.upper = np.maximum(plan.lower, np.minimum(plan.upper, problem.bounds[1]))
+            # a bound that pins a joint: the least width the box QP takes, inside the range
+            pinned = plan.upper - plan.lower < 1e-9
+            up = pinned & (plan.upper + 1e-9 <= self.upper)
+            plan.upper[up] = plan.lower[up] + 1e-9
+            plan.lower[pinned & ~up] = plan.upper[pinned & ~up] - 1e-9
+        if problem.max_change is not None or problem.bounds is not None:
+            q_start = np.clip(q_start, plan.lower, plan.upper)
         # Every seed and the warm start, then restarts (inside the max_change box) until one
         # meets everything; the best attempt by one cost is kept.
         best = None

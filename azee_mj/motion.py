@@ -102,11 +102,15 @@ class Motion:
         self.frame_step = MAX_JOINT_SPEED / fps
 
     def solve(self, cons, free, q0, t: float, seeds=(), max_change=None,
-              natural: bool = True, preferences=(), restarts=None, prefer=None) -> ik.IKResult:  # fmt: skip
+              natural: bool = True, preferences=(), restarts=None, prefer=None,
+              bounds=None) -> ik.IKResult:  # fmt: skip
         """Solve ``cons`` moving joints ``free`` from ``q0`` (and ``seeds``, other starts),
         allowing the contacts of time ``t`` [s], each joint within ``max_change`` of ``q0``
-        if given; every result is kept in ``results``."""
+        and inside ``bounds`` ((lower, upper), each (nq,)) if given; every result is kept
+        in ``results``."""
         problem = self.problem(cons, free, q0, t, seeds, max_change, natural, preferences)
+        if bounds is not None:
+            problem = dataclasses.replace(problem, bounds=bounds)
         if restarts is not None:
             problem = dataclasses.replace(problem, restarts=restarts)
         if prefer is not None:
@@ -207,6 +211,7 @@ class Motion:
         sites = {b.path: self.comp.site(b.transpath_site) for b in tp}
         limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
         curve = q.copy()
+        still = _next_still(moving)
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
@@ -262,6 +267,7 @@ class Motion:
             moved = sorted(j for j in free if self._dofs([j])[0] in needed) or sorted(free)
             rest = sorted(set(free) - set(moved))
             step, q0 = self.frame_step, q[f].copy()
+            bounds = self._reach(q, curve, still[f], f, names, tracks)
             if f > 0:
                 before = q[f - 1]
                 d = self._dofs(moved)
@@ -269,21 +275,48 @@ class Motion:
                 if rest:
                     d = self._dofs(rest)
                     q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
+            if bounds is not None:
+                q0 = np.clip(q0, *bounds)
             res = self.solve(cons, moved, q0, t, max_change=step, restarts=FRAME_RESTARTS,
-                             preferences=(self.curve_preference(q[f], moved),), prefer=q[f])  # fmt: skip
+                             preferences=(self.curve_preference(q[f], moved),), prefer=q[f],
+                             bounds=bounds)  # fmt: skip
             if rest and not res.converged and res.penetration > cn.PENETRATION_LIMIT:
                 # the blend goes through the body: every joint may push it out
                 res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
-                                 max_change=step, restarts=FRAME_RESTARTS)  # fmt: skip
+                                 max_change=step, restarts=FRAME_RESTARTS, bounds=bounds)  # fmt: skip
             d = self._dofs(sorted(free))
             if f > 0 and np.abs(res.qpos[d] - q[f - 1][d]).max() > step + 1e-9:
                 # a constraint far from the frame before (a key's hand shape that the blend
                 # reaches late): from the frame before, at most a step
                 q0[d] = q[f - 1][d]
+                if bounds is not None:
+                    q0 = np.clip(q0, *bounds)
                 res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
-                                 max_change=step, restarts=FRAME_RESTARTS)  # fmt: skip
+                                 max_change=step, restarts=FRAME_RESTARTS, bounds=bounds)  # fmt: skip
             q[f] = res.qpos
         return q
+
+    def _reach(self, q, curve, goal, f: int, names, tracks):
+        """Bounds (lower, upper) (nq,) keeping each blending track of frame ``f`` within
+        reach of the posture its blend arrives at (``goal``: per track, the first frame it
+        no longer blends, -1 if none): ``n`` frames before it, within ``n`` steps of it and
+        still within a step of the frame before. A per-frame solve that follows a path onto
+        another branch (the far side of the other arm) then returns to the key's in time,
+        at most a step a frame, rather than snap at the key. None if no track has a goal."""
+        step = self.frame_step
+        lo, hi = self.solver.lower.copy(), self.solver.upper.copy()
+        bounded = False
+        for i, tr in enumerate(names):
+            if tr not in tracks or goal[i] < 0:
+                continue
+            d, n = self.track_dofs[tr], goal[i] - f
+            lo[d] = np.maximum(lo[d], curve[goal[i]][d] - n * step)
+            hi[d] = np.minimum(hi[d], curve[goal[i]][d] + n * step)
+            if f > 0:  # and a step at most from the frame before
+                lo[d] = np.clip(lo[d], q[f - 1][d] - step, q[f - 1][d] + step)
+                hi[d] = np.clip(hi[d], q[f - 1][d] - step, q[f - 1][d] + step)
+            bounded = True
+        return (lo, hi) if bounded else None
 
     def _goal(self, tkeys: list[Key], i: int, dofs: np.ndarray) -> Key | None:
         """The key a track's blend from key ``i`` heads for: the first after the keys that
@@ -372,6 +405,17 @@ class Motion:
                         q[f] = self.solve(self.soft_targets(q[f], joints), sorted(joints), q[f],
                                            times[f]).qpos  # fmt: skip
         return q
+
+
+def _next_still(moving: np.ndarray) -> np.ndarray:
+    """(T, tracks) the first frame at or after each frame where each track does not blend
+    (-1: it blends to the end)."""
+    out = np.full(moving.shape, -1, int)
+    nxt = np.full(moving.shape[1], -1, int)
+    for f in range(len(moving) - 1, -1, -1):
+        nxt = np.where(moving[f], nxt, f)
+        out[f] = nxt
+    return out
 
 
 def path_points(route, x0, x1, u, sched: Schedule, q_start) -> np.ndarray:

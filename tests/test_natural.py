@@ -343,6 +343,22 @@ def test_a_per_frame_solve_stays_within_its_step(solver):
     assert np.abs(res.qpos - q0).max() <= 0.1 + 1e-12
 
 
+def test_a_per_frame_solve_stays_inside_its_bounds_from_a_start_outside(solver):
+    """The bounds a blend frame gets from the key it leads to (within reach of it) hold
+    even where the start lies outside them: the start is brought inside first."""
+    q0 = _index_hand(solver)
+    far = tuple(np.array([0.35, -0.1, 0.55]))
+    elbow = solver.model.jnt_qposadr[solver.joint_id("f_arm_R_flex")]
+    lo, hi = solver.lower.copy(), solver.upper.copy()
+    lo[elbow], hi[elbow] = q0[elbow] + 0.2, q0[elbow] + 0.3
+    problem = ik.IKProblem((cn.Place("I_TIP_R", Const(far), 1e-3, "far"),),
+                           tuple(DEFAULT_MAP.tracks["arm_R"]), max_change=0.4,
+                           bounds=(lo, hi))  # fmt: skip
+    res = solver.solve(problem, q0)
+    assert q0[elbow] + 0.2 <= res.qpos[elbow] <= q0[elbow] + 0.3
+    assert np.abs(res.qpos - q0).max() <= 0.4 + 1e-12
+
+
 def test_joints_never_exceed_25_rad_per_s_in_the_examples(solver):
     for name in ("bien", "armoire", "nicht-sondern", "info-about"):
         rollout = timeline.realize(f"examples/{name}.json", solver=solver)

@@ -409,7 +409,41 @@ def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
                 for j, v in (sol or {}).items():
                     q[solver.joint_info(j)[0]] = v
                 out.append(q)
-    return itertools.chain(out, _head_on_solves(solver, goals, hand_of, problem, q0))
+    return itertools.chain(out, _head_on_solves(solver, goals, hand_of, problem, q0),
+                           _turned_upper_arms(solver, goals, problem, q0))
+
+
+def _turned_upper_arms(solver: ik.Solver, goals, problem: ik.IKProblem, q0: np.ndarray):
+    """Starts (nq,), made lazily: ``q0`` with each arm's shoulder joints turned so that its
+    upper arm meets the orientation rules on it (a grid over the joint ranges, then
+    Nelder-Mead): an upper arm raised past the side has its own branch of the shoulder."""
+    m, d = solver.model, solver.data
+    k = solver.kinematics()
+    for arm in goals:
+        rules = [c for c in problem.constraints
+                 if isinstance(c, cn.Orient) and c.body == arm.upper]  # fmt: skip
+        if not rules:
+            continue
+        d.qpos[:] = q0
+        mujoco.mj_kinematics(m, d)
+        vecs = [k.value(c.vector) for c in rules]
+        vecs = [v / max(float(np.linalg.norm(v)), 1e-9) for v in vecs]
+        jid = [solver.joint_id(j) for j in (arm.flex, arm.abd, arm.rot)]
+        adr = m.jnt_qposadr[jid]
+        lo, hi = m.jnt_range[jid].T
+        q = q0.copy()
+        miss = _orient_miss(solver, q, adr, lo, hi, solver.body_id(arm.upper), rules, vecs)
+        grid = np.stack(np.meshgrid(*[np.linspace(a, b, 7) for a, b in zip(lo, hi)],
+                                    indexing="ij"), -1).reshape(-1, 3)  # fmt: skip
+        # one start on each side of the abduction's right angle (two shoulder branches)
+        for side in (grid[:, 1] <= np.pi / 2, grid[:, 1] > np.pi / 2):
+            if not side.any():
+                continue
+            best = min(grid[side], key=miss)
+            x = optimize.minimize(miss, best, method="Nelder-Mead",
+                                  options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": 300}).x
+            q[adr] = np.clip(x, lo, hi)
+            yield q.copy()
 
 
 #: Largest angle [rad] between a fingertip's segment and the normal of the surface it
@@ -449,3 +483,26 @@ def _head_on_solves(solver: ik.Solver, goals, hand_of, problem: ik.IKProblem, q0
         aug = dataclasses.replace(problem, constraints=tuple(problem.constraints) + (rule,),
                                   restarts=1)  # fmt: skip
         yield solver.solve(aug, q0).qpos
+
+
+def _orient_miss(solver: ik.Solver, q: np.ndarray, adr, lo, hi, body: int, rules, vecs):
+    """The squared miss of the orientation ``rules`` (with their unit vectors ``vecs``) on
+    ``body`` as a function of the joints at ``adr`` of ``q`` (set in place, within
+    ``lo``..``hi``)."""
+    m, d = solver.model, solver.data
+
+    def miss(x):
+        q[adr] = np.clip(x, lo, hi)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        R = d.xmat[body].reshape(3, 3)
+        cost = 0.0
+        for c, v in zip(rules, vecs):
+            a = R @ np.asarray(c.local, float)
+            if c.rel is cn.Rel.PERP:
+                cost += float(a @ v) ** 2
+            else:
+                cost += float(np.sum((a - (-v if c.rel is cn.Rel.OPP else v)) ** 2))
+        return cost
+
+    return miss

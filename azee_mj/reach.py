@@ -482,7 +482,12 @@ def _head_on_solves(solver: ik.Solver, goals, hand_of, problem: ik.IKProblem, q0
                          BodyAxis(tname, tuple(nl)), tol=HEAD_ON_SEGMENT, label="head-on")
         aug = dataclasses.replace(problem, constraints=tuple(problem.constraints) + (rule,),
                                   restarts=1)  # fmt: skip
-        yield solver.solve(aug, q0).qpos
+        observer, solver.on_solve = solver.on_solve, None  # not one of the caller's solves
+        try:
+            q = solver.solve(aug, q0).qpos
+        finally:
+            solver.on_solve = observer
+        yield q
 
 
 def _orient_miss(solver: ik.Solver, q: np.ndarray, adr, lo, hi, body: int, rules, vecs):

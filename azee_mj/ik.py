@@ -27,7 +27,7 @@ import dataclasses
 import itertools
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping
 
 import mujoco
 import numpy as np
@@ -191,7 +191,7 @@ class Solver:
         natural one. None = the first it reaches.
       seeder: ``seeder(solver, problem, q_start)`` gives further starts (nq,) for the
         restarts of a problem without ``seeds`` of its own, tried after the first (e.g. the
-        arms on other elbow-swivel branches).
+        arms on other elbow-swivel branches); an iterator is drawn only as far as needed.
     """
 
     def __init__(
@@ -206,7 +206,7 @@ class Solver:
         seed: int = 0,
         on_solve: Callable[[IKProblem, IKResult], None] | None = None,
         naturalness: Naturalness | None = None,
-        seeder: Callable[[Solver, IKProblem, np.ndarray], Sequence[np.ndarray]] | None = None,
+        seeder: Callable[[Solver, IKProblem, np.ndarray], Iterable[np.ndarray]] | None = None,
     ):
         if isinstance(model, mujoco.MjSpec):
             spec = model.copy()

@@ -17,13 +17,15 @@ Units: metres, radians.
 from __future__ import annotations
 
 import dataclasses
+import itertools
+from collections.abc import Iterable
 
 import mujoco
 import numpy as np
 from scipy import optimize
 
 from azee_mj import constraints as cn
-from azee_mj import ik
+from azee_mj import ik, surface
 from azee_mj.kinematics import BodyAxis, SitePos
 
 #: The hand comes to its target from this far in front of the shoulder [m].
@@ -360,15 +362,17 @@ HAND_TURNS = (1.2, 0.8)
 
 
 def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
-                 q0: np.ndarray, turns=None) -> list[np.ndarray]:
+                 q0: np.ndarray, turns=None) -> Iterable[np.ndarray]:
     """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: first every
     free arm in its natural two-bone posture for its hand's first placement
     (:func:`arm_seeds`); then ``q0`` with each placed hand turned by ``HAND_TURNS`` (about
     the forearm, then at the wrist, each way; ``turns`` maps an arm to its (pronation,
     wrist flexion) joint names, None: no turns); then one free arm at a time (the rest as
     in ``q0``) in its two-bone posture at each swivel of ``SWIVEL_RETRIES``, its hand at the
-    target of the first placement of a site on it, then its wrist kept where it is.
-    ``hand_of(site)`` is the arm whose hand carries a model site, or None."""
+    target of the first placement of a site on it, then its wrist kept where it is; last,
+    made only when asked for, ``problem`` solved with a fingertip held head-on to the
+    surface it meets (:func:`_head_on_solves`). ``hand_of(site)`` is the arm whose hand
+    carries a model site, or None."""
     m, d = solver.model, solver.data
     d.qpos[:] = q0
     mujoco.mj_kinematics(m, d)
@@ -405,4 +409,105 @@ def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
                 for j, v in (sol or {}).items():
                     q[solver.joint_info(j)[0]] = v
                 out.append(q)
-    return out
+    return itertools.chain(out, _head_on_solves(solver, goals, hand_of, problem, q0),
+                           _turned_upper_arms(solver, goals, problem, q0))
+
+
+def _turned_upper_arms(solver: ik.Solver, goals, problem: ik.IKProblem, q0: np.ndarray):
+    """Starts (nq,), made lazily: ``q0`` with each arm's shoulder joints turned so that its
+    upper arm meets the orientation rules on it (a grid over the joint ranges, then
+    Nelder-Mead): an upper arm raised past the side has its own branch of the shoulder."""
+    m, d = solver.model, solver.data
+    k = solver.kinematics()
+    for arm in goals:
+        rules = [c for c in problem.constraints
+                 if isinstance(c, cn.Orient) and c.body == arm.upper]  # fmt: skip
+        if not rules:
+            continue
+        d.qpos[:] = q0
+        mujoco.mj_kinematics(m, d)
+        vecs = [k.value(c.vector) for c in rules]
+        vecs = [v / max(float(np.linalg.norm(v)), 1e-9) for v in vecs]
+        jid = [solver.joint_id(j) for j in (arm.flex, arm.abd, arm.rot)]
+        adr = m.jnt_qposadr[jid]
+        lo, hi = m.jnt_range[jid].T
+        q = q0.copy()
+        miss = _orient_miss(solver, q, adr, lo, hi, solver.body_id(arm.upper), rules, vecs)
+        grid = np.stack(np.meshgrid(*[np.linspace(a, b, 7) for a, b in zip(lo, hi)],
+                                    indexing="ij"), -1).reshape(-1, 3)  # fmt: skip
+        # one start on each side of the abduction's right angle (two shoulder branches)
+        for side in (grid[:, 1] <= np.pi / 2, grid[:, 1] > np.pi / 2):
+            if not side.any():
+                continue
+            best = min(grid[side], key=miss)
+            x = optimize.minimize(miss, best, method="Nelder-Mead",
+                                  options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": 300}).x
+            q[adr] = np.clip(x, lo, hi)
+            yield q.copy()
+
+
+#: Largest angle [rad] between a fingertip's segment and the normal of the surface it
+#: meets in the seeder's head-on solves.
+HEAD_ON_SEGMENT = np.deg2rad(20.0)
+
+
+def _head_on_solves(solver: ik.Solver, goals, hand_of, problem: ik.IKProblem, q0: np.ndarray):
+    """Starts (nq,), made lazily: for each arm's first placement of a hand site on a site
+    of another body, ``problem`` solved from ``q0`` (without restarts) with that site's
+    segment held within ``HEAD_ON_SEGMENT`` of the target surface's inward normal; a finger
+    that meets the chin or the other hand at a slant touches it with its pad first."""
+    m, d = solver.model, solver.data
+    k = solver.kinematics()
+    for arm in goals:
+        c = next((c for c in problem.constraints if isinstance(c, cn.Place)
+                  and hand_of(c.site) is arm and isinstance(c.target, SitePos)
+                  and hand_of(c.target.site) is not arm), None)  # fmt: skip
+        if c is None:
+            continue
+        sid = solver.site_id(c.site)
+        local = np.asarray(m.site_pos[sid], float)
+        if m.site_bodyid[sid] == solver.body_id(arm.hand) or np.linalg.norm(local) < 1e-6:
+            continue  # not the end of a finger segment
+        d.qpos[:] = q0
+        mujoco.mj_kinematics(m, d)
+        tbody = int(m.site_bodyid[solver.site_id(c.target.site)])
+        try:
+            normal = surface.skin_distance(m, d, tbody, k.value(c.target))[1]
+        except ValueError:
+            continue
+        nl = d.xmat[tbody].reshape(3, 3).T @ normal
+        seg = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.site_bodyid[sid]))
+        tname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, tbody)
+        rule = cn.Orient(seg, tuple(local / np.linalg.norm(local)), cn.Rel.OPP,
+                         BodyAxis(tname, tuple(nl)), tol=HEAD_ON_SEGMENT, label="head-on")
+        aug = dataclasses.replace(problem, constraints=tuple(problem.constraints) + (rule,),
+                                  restarts=1)  # fmt: skip
+        observer, solver.on_solve = solver.on_solve, None  # not one of the caller's solves
+        try:
+            q = solver.solve(aug, q0).qpos
+        finally:
+            solver.on_solve = observer
+        yield q
+
+
+def _orient_miss(solver: ik.Solver, q: np.ndarray, adr, lo, hi, body: int, rules, vecs):
+    """The squared miss of the orientation ``rules`` (with their unit vectors ``vecs``) on
+    ``body`` as a function of the joints at ``adr`` of ``q`` (set in place, within
+    ``lo``..``hi``)."""
+    m, d = solver.model, solver.data
+
+    def miss(x):
+        q[adr] = np.clip(x, lo, hi)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        R = d.xmat[body].reshape(3, 3)
+        cost = 0.0
+        for c, v in zip(rules, vecs):
+            a = R @ np.asarray(c.local, float)
+            if c.rel is cn.Rel.PERP:
+                cost += float(a @ v) ** 2
+            else:
+                cost += float(np.sum((a - (-v if c.rel is cn.Rel.OPP else v)) ** 2))
+        return cost
+
+    return miss

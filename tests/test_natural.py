@@ -270,7 +270,7 @@ def test_restarts_try_the_seeders_branches_and_keep_them_only_when_met(solver):
     seeder = solver.seeder
 
     def spy(s, problem, q):
-        out = seeder(s, problem, q)
+        out = list(seeder(s, problem, q))
         calls.append(len(out))
         return out
 
@@ -310,11 +310,13 @@ def _stored_problem(path) -> tuple[ik.IKProblem, np.ndarray]:
     return ik.IKProblem(tuple(cons), tuple(doc["free_joints"])), np.array(doc["start"])
 
 
-@pytest.mark.parametrize("name", ["branch_keyframe", "blocked_contact"])
+@pytest.mark.parametrize("name", ["branch_keyframe", "blocked_contact", "headon_contact",
+                                  "raised_upper_arm"])  # fmt: skip
 def test_a_start_on_another_branch_is_met_from_the_seeders_starts(solver, name):
     # Benchmark keyframes and the warm starts a chain reached them from: an arm on another
-    # branch, fingers meeting interlocked. The warm start misses; a two-bone arm seed, a
-    # turned hand meet them.
+    # branch, fingers meeting interlocked, a thumb meeting the chin at a slant, an upper arm
+    # raised past the side. The warm start misses; a two-bone arm seed, a turned hand, the
+    # solve with the thumb head-on, the shoulder on its other branch meet them.
     problem, start = _stored_problem(DATA / f"{name}.json")
     res = solver.solve(problem, start)
     assert res.converged and res.restarts >= 2

@@ -9,11 +9,12 @@ first time something renders. Units: metres, seconds.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from azee_mj import score as sc
 from azee_mj.errors import AzeeError
-from azee_mj.markers import Clip, Targets, add_markers, markers
+from azee_mj.markers import Clip, Marker, Targets, add_markers, markers
 from azee_mj.model import SCENE_PATH
 
 #: The fixed cameras of ``scene.xml``, in the order ``C`` cycles them in the viewer.
@@ -35,10 +36,21 @@ DEFAULT_SIZE = (640, 480)
 SHADOW_SIZE = 1024
 #: Tessellation of capsules, spheres and ellipsoids in offscreen renders: (slices, stacks).
 TESSELLATION = (16, 10)
-#: Multisampling of offscreen renders (samples per pixel) with and without antialiasing.
-SAMPLES = {True: 4, False: 0}
+#: Multisampling (samples per pixel) of :func:`scene_model` for callers that render with
+#: ``mujoco.Renderer`` themselves.
+MULTISAMPLES = 4
+#: Antialiasing by supersampling: an antialiased frame is rendered this many times larger in
+#: each direction (without multisampling) and scaled down with a bicubic filter. In software
+#: GL this costs about half of what 4x multisampling does, for smoother edges than it
+#: (docs/benchmarks.md, "Rendering speed").
+SUPERSAMPLE = 1.5
 #: Encoded frames waiting for the encoder thread, at most.
 QUEUE_FRAMES = 8
+#: Frames each render worker may have rendered ahead of the encoder, at most.
+WORKER_SLOTS = 4
+#: Videos shorter than this many frames are rendered in this process only (starting a
+#: worker costs about as much as rendering this many frames).
+MIN_WORKER_FRAMES = 24
 
 RENDER_HINT = "pip install azee_mj[render]"
 
@@ -113,20 +125,40 @@ def gl_backend(probe: Callable[[str], bool] | None = None) -> str:
 # ---------------------------------------------------------------------------------------
 
 
-def scene_model(width: int = 0, height: int = 0, *, antialias: bool = True) -> mujoco.MjModel:
-    """The signer on its floor with lights and cameras, with room for a ``width`` x
-    ``height`` offscreen buffer, set up for software GL (see docs/rendering.md)."""
+def scene_model(width: int = 0, height: int = 0, *, multisample: bool = True) -> mujoco.MjModel:
+    """The signer on its floor with lights and cameras, with an offscreen buffer of exactly
+    ``width`` x ``height`` (when given), set up for software GL (see docs/rendering.md).
+    ``multisample``: 4x multisampling for a ``mujoco.Renderer`` on it (:class:`FrameRenderer`
+    turns it off and supersamples instead)."""
     m = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
-    m.vis.global_.offwidth = max(m.vis.global_.offwidth, width)
-    m.vis.global_.offheight = max(m.vis.global_.offheight, height)
+    if width and height:  # a larger buffer than the image costs its clearing every frame
+        m.vis.global_.offwidth, m.vis.global_.offheight = width, height
     q = m.vis.quality
     # Each looks the same at these sizes and costs less in software GL: a 1024 shadow map
     # (not 4096), and 16 x 10 facets per round geom (not 28 x 16; every geom is drawn in
     # several passes a frame, for the shadow map and the lights).
     q.shadowsize = min(q.shadowsize, SHADOW_SIZE)
     q.numslices, q.numstacks = min(q.numslices, TESSELLATION[0]), min(q.numstacks, TESSELLATION[1])
-    q.offsamples = min(q.offsamples, SAMPLES[antialias])
+    q.offsamples = min(q.offsamples, MULTISAMPLES) if multisample else 0
     return m
+
+
+def render_size(size: tuple[int, int], antialias: bool = True) -> tuple[int, int]:
+    """The (W, H) actually rendered for an image of ``size``: :data:`SUPERSAMPLE` times
+    larger (rounded to even numbers) when antialiased, ``size`` otherwise."""
+    if not antialias:
+        return size
+    return tuple(2 * round(v * SUPERSAMPLE / 2) for v in size)  # type: ignore[return-value]
+
+
+def downscale(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``img`` (H, W, 3) uint8 scaled to ``size`` (W, H) with a bicubic filter (Pillow's,
+    which widens the filter when shrinking, so every rendered pixel counts)."""
+    if (img.shape[1], img.shape[0]) == tuple(size):
+        return img
+    from PIL import Image
+
+    return np.asarray(Image.fromarray(img).resize(tuple(size), Image.Resampling.BICUBIC))
 
 
 def camera_id(model: mujoco.MjModel, camera: str) -> int:
@@ -149,23 +181,43 @@ def resample(clip: Clip, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return t, (1 - w) * clip.qpos[i0] + w * clip.qpos[i1]
 
 
+class Decorations:
+    """The markers drawn over each frame of ``clip`` (:func:`~azee_mj.markers.markers`)
+    when ``targets`` is on, none otherwise; computed on a scene model of its own, so that
+    they can be handed to a renderer in another process."""
+
+    def __init__(self, clip: Clip, targets: bool = False):
+        self.clip, self.on = clip, targets
+        if targets:
+            self.model = scene_model()
+            self.data = mujoco.MjData(self.model)
+            self.targets = Targets(clip.score) if clip.score is not None else None
+
+    def __call__(self, frame: int | None) -> tuple[Marker, ...]:
+        if not self.on or frame is None:
+            return ()
+        return tuple(markers(self.model, self.data, self.clip, frame, self.targets))
+
+
 class FrameRenderer:
     """Renders postures of the signer offscreen from one camera (a ``mujoco.Renderer`` on
-    ``scene.xml``, reused for every frame); ``targets`` adds the constraint markers,
-    ``antialias=False`` turns multisampling off (about twice as fast in software GL, with
-    jagged edges). Use as a context manager."""
+    ``scene.xml``, reused for every frame); ``targets`` adds the constraint markers of
+    ``clip``. ``antialias`` renders :data:`SUPERSAMPLE` times larger (``render_size``) and
+    scales down; ``antialias=False`` renders at ``size`` (about 1.5 times as fast in
+    software GL, with jagged edges). Use as a context manager."""
 
-    def __init__(self, clip: Clip, *, camera: str = "front", size=DEFAULT_SIZE,
+    def __init__(self, clip: Clip | None = None, *, camera: str = "front", size=DEFAULT_SIZE,
                  targets: bool = False, antialias: bool = True):  # fmt: skip
         gl_backend()
-        w, h = size
-        self.size = (w, h)
-        self.model = scene_model(w, h, antialias=antialias)
+        self.size = (int(size[0]), int(size[1]))
+        self.render_size = render_size(self.size, antialias)
+        w, h = self.render_size
+        self.model = scene_model(w, h, multisample=False)
         self.cam = camera_id(self.model, camera)
         self.data = mujoco.MjData(self.model)
         self.clip = clip
-        self.targets = Targets(clip.score) if targets and clip.score is not None else None
-        self.decorate = targets
+        self.decorations = Decorations(clip, targets) if clip is not None else None
+        self._full = np.empty((h, w, 3), np.uint8)
         try:
             self.r = mujoco.Renderer(self.model, height=h, width=w)
         except Exception as e:  # noqa: BLE001  (GL errors come in several types)
@@ -174,20 +226,30 @@ class FrameRenderer:
         # fixed cameras, and drawing it costs a whole extra pass of the scene.
         self.r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
 
-    def render(self, q: np.ndarray, frame: int | None = None,
-               out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-        """(H, W, 3) uint8 image of posture ``q`` (written into ``out`` if given); markers of
-        clip frame ``frame`` if any."""
+    def draw(self, q: np.ndarray, items: Sequence[Marker] = (),
+             out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """(H, W, 3) uint8 image of posture ``q`` with ``items`` drawn over it, at
+        ``render_size`` (written into ``out`` if given)."""
         d = self.data
-        items = []
-        if self.decorate and frame is not None:
-            items = markers(self.model, d, self.clip, frame, self.targets)
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
         self.r.update_scene(d, camera=self.cam)
         if items:
             add_markers(self.r.scene, items)
         return self.r.render(out=out)
+
+    def render(self, q: np.ndarray, frame: int | None = None,
+               out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """(H, W, 3) uint8 image of posture ``q`` at ``size`` (written into ``out`` if
+        given); markers of clip frame ``frame`` if any."""
+        items = self.decorations(frame) if self.decorations is not None else ()
+        if self.render_size == self.size:
+            return self.draw(q, items, out)
+        img = downscale(self.draw(q, items, self._full), self.size)
+        if out is None:
+            return img
+        out[:] = img
+        return out
 
     def close(self) -> None:
         self.r.close()
@@ -231,7 +293,7 @@ def parse_size(text: str) -> tuple[int, int]:
 OUTPUT_SUFFIXES = (".mp4", ".gif", ".png")
 
 
-def check_render_options(out, size, fps, time) -> None:
+def check_render_options(out, size, fps, time, workers: int | None = None) -> None:
     """Raise :class:`AzeeError` for an output or option render cannot honour."""
     suffix = Path(out).suffix.lower()
     if suffix not in OUTPUT_SUFFIXES:
@@ -244,6 +306,8 @@ def check_render_options(out, size, fps, time) -> None:
         raise AzeeError(f"--fps: must be in (0, 240], got {fps:g}")
     if time is not None and suffix != ".png":
         raise AzeeError(f"--time: only for a .png still, not {suffix}")
+    if workers is not None and workers < 1:
+        raise AzeeError(f"--jobs: must be at least 1, got {workers}")
 
 
 def _need(module: str):
@@ -266,20 +330,24 @@ def render(
     time: float | None = None,
     targets: bool = False,
     antialias: bool = True,
+    workers: int | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> Path:
     """Render ``clip`` to ``out`` by its suffix, atomically.
 
     ``.mp4`` / ``.gif``: the video at ``fps`` (default: the clip's). ``.png``: the frame at
     ``time`` [s], or without it a contact sheet of :func:`key_frames`, labelled.
-    ``antialias=False`` renders without multisampling: about twice as fast in software GL,
-    with visibly jagged edges. Video frames are encoded in a thread while the next renders.
-    Raises :class:`AzeeError` for bad options (before anything is written).
+    ``antialias`` supersamples (:data:`SUPERSAMPLE`); ``antialias=False`` is about 1.5 times
+    as fast in software GL, with visibly jagged edges. Video frames are rendered by
+    ``workers`` processes (default :func:`video_workers`), each rendering every
+    ``workers``-th frame, and encoded in order in a thread (an .mp4 is scaled down to
+    ``size`` by the encoder). Raises :class:`AzeeError` for bad options (before anything is
+    written) and when rendering fails; the output is then absent.
     """
     from azee_mj.files import atomic_path
 
     out = Path(out)
-    check_render_options(out, size, fps, time)
+    check_render_options(out, size, fps, time, workers)
     if camera not in CAMERAS:
         raise AzeeError(f"--camera: unknown camera {camera!r}; valid: {', '.join(CAMERAS)}")
     if time is not None and not (-1e-9 <= time <= clip.duration + 1e-9):
@@ -291,40 +359,177 @@ def render(
         _need("imageio_ffmpeg")
     imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
     pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
-    with FrameRenderer(clip, camera=camera, size=size, targets=targets,
-                       antialias=antialias) as fr:  # fmt: skip
-        if suffix == ".png":
+    if suffix == ".png":
+        with FrameRenderer(clip, camera=camera, size=size, targets=targets,
+                           antialias=antialias) as fr:  # fmt: skip
             if time is not None:
                 f = clip.frame_at(time)
                 img = pil.fromarray(fr.render(clip.qpos[f], f))
             else:
                 img = _contact_sheet(fr, clip, size, tick)
-            with atomic_path(out) as tmp:
-                img.save(tmp, format="PNG", optimize=True)
-            tick(1.0)
-            return out
-        vfps = float(fps or clip.fps)
-        times, qs = resample(clip, vfps)
         with atomic_path(out) as tmp:
-            if suffix == ".mp4":
-                # x264's veryfast preset: half the encoding CPU of its default, same quality.
-                w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264",
-                                       quality=7, macro_block_size=2, ffmpeg_log_level="error",
-                                       output_params=["-preset", "veryfast"])  # fmt: skip
-                with Encoder(w.append_data, (size[1], size[0], 3), close=w.close) as enc:
-                    for k, q in enumerate(qs):
-                        enc.put(fr.render(q, clip.frame_at(times[k]), out=enc.buffer()))
-                        tick((k + 1) / len(qs))
-            else:
-                frames = []
-                quantize = pil.Quantize.MEDIANCUT
-                for k, q in enumerate(qs):
-                    im = pil.fromarray(fr.render(q, clip.frame_at(times[k])))
-                    frames.append(im.quantize(colors=128, method=quantize))
-                    tick((k + 1) / len(qs))
-                frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
-                               duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
+            img.save(tmp, format="PNG", optimize=True)
+        tick(1.0)
+        return out
+    vfps = float(fps or clip.fps)
+    times, qs = resample(clip, vfps)
+    deco = Decorations(clip, targets)
+    items = [deco(clip.frame_at(t)) for t in times] if targets else None
+    n = len(qs)
+    jobs = video_workers(n, workers)
+    rw, rh = render_size(size, antialias)
+    with atomic_path(out) as tmp:
+        if suffix == ".mp4":
+            # x264's veryfast preset: half the encoding CPU of its default, same quality.
+            params = ["-preset", "veryfast"]
+            if (rw, rh) != tuple(size):  # supersampled: ffmpeg scales down, in its process
+                params += ["-vf", f"scale={size[0]}:{size[1]}:flags=bicubic"]
+            w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264", quality=7,
+                                   macro_block_size=2, ffmpeg_log_level="error",
+                                   output_params=params)  # fmt: skip
+            with Encoder(w.append_data, (rh, rw, 3), close=w.close) as enc:
+                for k, img in enumerate(render_frames(qs, items, camera=camera, size=size,
+                                                      antialias=antialias, workers=jobs,
+                                                      buffer=enc.buffer)):  # fmt: skip
+                    enc.put(img)
+                    tick((k + 1) / n)
+        else:
+            frames = []
+            quantize = pil.Quantize.MEDIANCUT
+            for k, img in enumerate(render_frames(qs, items, camera=camera, size=size,
+                                                  antialias=antialias, workers=jobs)):  # fmt: skip
+                im = pil.fromarray(downscale(img, size))
+                frames.append(im.quantize(colors=128, method=quantize))
+                tick((k + 1) / n)
+            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
+                           duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# Frames rendered by several processes
+# ---------------------------------------------------------------------------------------
+
+
+def video_workers(frames: int, workers: int | None = None) -> int:
+    """Processes that render a video of ``frames`` frames: ``workers`` if given, else 2
+    where 2 cores are usable; 1 (this process) for a video shorter than
+    :data:`MIN_WORKER_FRAMES` or on one core."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    if workers is None:
+        workers = 1 if frames < MIN_WORKER_FRAMES else min(2, cores)
+    return max(1, min(workers, frames))
+
+
+def render_frames(
+    qs: Sequence[np.ndarray] | np.ndarray,
+    items: Sequence[Sequence[Marker]] | None = None,
+    *,
+    camera: str = "front",
+    size: tuple[int, int] = DEFAULT_SIZE,
+    antialias: bool = True,
+    workers: int = 1,
+    buffer: Callable[[], np.ndarray] | None = None,
+) -> Iterator[np.ndarray]:
+    """The images of postures ``qs`` (with markers ``items[k]`` over frame ``k``), in order,
+    at :func:`render_size` (H, W, 3) uint8.
+
+    ``workers`` > 1 starts that many processes, each with its own renderer, rendering every
+    ``workers``-th frame a few frames ahead into shared memory; the frames are the same, bit
+    for bit, as those rendered here. ``buffer()`` gives the array each frame is written
+    into (a new one each time by default). A worker's error is raised here as
+    :class:`AzeeError`; closing the generator early (or an error) stops the workers.
+    """
+    n = len(qs)
+    items = items if items is not None else [()] * n
+    rw, rh = render_size(size, antialias)
+    new = buffer or (lambda: np.empty((rh, rw, 3), np.uint8))
+    if workers <= 1:
+        with FrameRenderer(camera=camera, size=size, antialias=antialias) as fr:
+            for q, it in zip(qs, items, strict=True):
+                yield fr.draw(q, it, out=new())
+        return
+    import multiprocessing
+    import queue
+
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx: Any = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["azee_mj.render"])  # imports once, not in every worker
+    else:
+        ctx = multiprocessing.get_context("spawn")
+    job = _WorkerJob(gl_backend(), camera, tuple(size), antialias)
+    nbytes = rh * rw * 3
+    slots, free, ready, procs = [], [], [], []
+    try:
+        for i in range(workers):
+            mine = [(np.asarray(qs[k], float), tuple(items[k])) for k in range(i, n, workers)]
+            slots.append(ctx.RawArray("B", WORKER_SLOTS * nbytes))
+            free.append(ctx.Semaphore(WORKER_SLOTS))
+            ready.append(ctx.Queue())
+            p = ctx.Process(target=_render_worker, name=f"azee-mj render {i}", daemon=True,
+                            args=(job, mine, slots[i], free[i], ready[i]))  # fmt: skip
+            p.start()
+            procs.append(p)
+        views = [np.frombuffer(s, np.uint8).reshape(WORKER_SLOTS, rh, rw, 3) for s in slots]
+        for k in range(n):
+            i, j = k % workers, k // workers
+            while True:
+                try:
+                    msg = ready[i].get(timeout=0.5)
+                    break
+                except queue.Empty:
+                    if procs[i].exitcode is not None and ready[i].empty():
+                        raise AzeeError(f"render worker {i} stopped (exit code "
+                                        f"{procs[i].exitcode})") from None  # fmt: skip
+            if msg != j:
+                raise AzeeError(str(msg))
+            img = new()
+            img[:] = views[i][j % WORKER_SLOTS]
+            free[i].release()
+            yield img
+    finally:
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+        for p in procs:
+            p.join()
+        for r in ready:
+            r.close()
+            r.join_thread()
+
+
+@dataclasses.dataclass(frozen=True)
+class _WorkerJob:
+    backend: str
+    camera: str
+    size: tuple[int, int]
+    antialias: bool
+
+
+def _render_worker(job: _WorkerJob, tasks, slots, free, ready) -> None:
+    """One render worker: frame ``j`` of ``tasks`` into slot ``j % WORKER_SLOTS`` once the
+    parent freed it; ``j`` (or an error message) on ``ready``."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
+    try:
+        os.environ["MUJOCO_GL"] = job.backend
+        with FrameRenderer(camera=job.camera, size=job.size, antialias=job.antialias) as fr:
+            w, h = fr.render_size
+            views = np.frombuffer(slots, np.uint8).reshape(WORKER_SLOTS, h, w, 3)
+            for j, (q, items) in enumerate(tasks):
+                free.acquire()
+                fr.draw(q, items, out=views[j % WORKER_SLOTS])
+                ready.put(j)
+    except Exception as e:  # noqa: BLE001  (reported to the parent, which raises it)
+        ready.put(str(e) if isinstance(e, AzeeError) else f"rendering failed: "
+                  f"{type(e).__name__}: {e}")  # fmt: skip
+    finally:
+        ready.close()
+        ready.join_thread()
 
 
 class Encoder:

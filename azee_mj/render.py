@@ -437,11 +437,16 @@ def render_frames(
     """The images of postures ``qs`` (with markers ``items[k]`` over frame ``k``), in order,
     at :func:`render_size` (H, W, 3) uint8.
 
-    ``workers`` > 1 starts that many processes, each with its own renderer, rendering every
-    ``workers``-th frame a few frames ahead into shared memory; the frames are the same, bit
-    for bit, as those rendered here. ``buffer()`` gives the array each frame is written
-    into (a new one each time by default). A worker's error is raised here as
+    ``workers`` > 1: this process and ``workers - 1`` worker processes, each with its own
+    renderer, share the frames. This process renders from the start; a worker, once its
+    renderer is up, is handed the next frames (up to :data:`WORKER_SLOTS` at once, into
+    shared memory), while this process renders the frames after those. The frames are the
+    same, bit for bit, whoever renders them. ``buffer()`` gives the array each frame is
+    written into (a new one each time by default). A worker's error is raised here as
     :class:`AzeeError`; closing the generator early (or an error) stops the workers.
+
+    The workers start with ``forkserver`` (``spawn`` where there is none): a script that
+    calls this with ``workers`` > 1 needs the ``if __name__ == "__main__":`` guard.
     """
     n = len(qs)
     items = items if items is not None else [()] * n
@@ -452,53 +457,137 @@ def render_frames(
             for q, it in zip(qs, items, strict=True):
                 yield fr.draw(q, it, out=new())
         return
-    import multiprocessing
-    import queue
-
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx: Any = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["azee_mj.render"])  # imports once, not in every worker
-    else:
-        ctx = multiprocessing.get_context("spawn")
-    job = _WorkerJob(gl_backend(), camera, tuple(size), antialias)
-    nbytes = rh * rw * 3
-    slots, free, ready, procs = [], [], [], []
-    try:
-        for i in range(workers):
-            mine = [(np.asarray(qs[k], float), tuple(items[k])) for k in range(i, n, workers)]
-            slots.append(ctx.RawArray("B", WORKER_SLOTS * nbytes))
-            free.append(ctx.Semaphore(WORKER_SLOTS))
-            ready.append(ctx.Queue())
-            p = ctx.Process(target=_render_worker, name=f"azee-mj render {i}", daemon=True,
-                            args=(job, mine, slots[i], free[i], ready[i]))  # fmt: skip
-            p.start()
-            procs.append(p)
-        views = [np.frombuffer(s, np.uint8).reshape(WORKER_SLOTS, rh, rw, 3) for s in slots]
+    with _Workers(workers - 1, camera, size, antialias) as pool, \
+            FrameRenderer(camera=camera, size=size, antialias=antialias) as fr:  # fmt: skip
+        here: dict[int, np.ndarray] = {}  # frames rendered here ahead of their turn
+        nxt = 0  # the first frame not yet rendered here nor handed to a worker
         for k in range(n):
-            i, j = k % workers, k // workers
-            while True:
-                try:
-                    msg = ready[i].get(timeout=0.5)
-                    break
-                except queue.Empty:
-                    if procs[i].exitcode is not None and ready[i].empty():
-                        raise AzeeError(f"render worker {i} stopped (exit code "
-                                        f"{procs[i].exitcode})") from None  # fmt: skip
-            if msg != j:
-                raise AzeeError(str(msg))
-            img = new()
-            img[:] = views[i][j % WORKER_SLOTS]
-            free[i].release()
-            yield img
-    finally:
-        for p in procs:
+            while k not in here and not pool.has(k):
+                nxt = pool.hand_out(nxt, min(n, k + AHEAD), lambda j: (qs[j], items[j]))
+                if k in pool.sent:
+                    if pool.poll(k):  # without waiting
+                        break
+                    if nxt < min(n, k + AHEAD):  # work here while the worker renders k
+                        here[nxt] = fr.draw(qs[nxt], items[nxt], out=new())
+                        nxt += 1
+                    else:
+                        pool.wait(k)
+                else:  # k == nxt: no worker free for it
+                    here[k] = fr.draw(qs[k], items[k], out=new())
+                    nxt = k + 1
+            if k in here:
+                yield here.pop(k)
+            else:
+                img = new()
+                pool.take(k, img)
+                yield img
+
+
+#: Frames a video's renderers may be ahead of the encoder, at most.
+AHEAD = 12
+
+
+class _Workers:
+    """Render worker processes for :func:`render_frames`, each with :data:`WORKER_SLOTS`
+    shared-memory frame slots; this process hands each frame to one worker and a free slot
+    of it."""
+
+    def __init__(self, count: int, camera: str, size, antialias: bool):
+        import multiprocessing
+
+        if "forkserver" in multiprocessing.get_all_start_methods():
+            ctx: Any = multiprocessing.get_context("forkserver")
+            ctx.set_forkserver_preload(["azee_mj.render"])  # imports once, not per worker
+        else:
+            ctx = multiprocessing.get_context("spawn")
+        w, h = render_size(size, antialias)
+        job = _WorkerJob(gl_backend(), camera, (int(size[0]), int(size[1])), antialias)
+        self.procs, self.todo, self.done, self.views = [], [], [], []
+        self.up = [False] * count  # the worker's renderer is ready
+        self.free = [list(range(WORKER_SLOTS)) for _ in range(count)]
+        self.sent: dict[int, tuple[int, int]] = {}  # frame -> (worker, slot)
+        self.ready: set[int] = set()  # frames rendered by workers, not taken yet
+        for i in range(count):
+            slots = ctx.RawArray("B", WORKER_SLOTS * w * h * 3)
+            self.views.append(np.frombuffer(slots, np.uint8).reshape(WORKER_SLOTS, h, w, 3))
+            todo_r, todo_w = ctx.Pipe(duplex=False)
+            done_r, done_w = ctx.Pipe(duplex=False)
+            self.todo.append(todo_w)
+            self.done.append(done_r)
+            p = ctx.Process(target=_render_worker, daemon=True, name=f"azee-mj render {i + 1}",
+                            args=(job, slots, todo_r, done_w))  # fmt: skip
+            p.start()
+            self.procs.append(p)
+            todo_r.close()  # the worker's ends: a worker that dies closes its pipes
+            done_w.close()
+
+    def hand_out(self, nxt: int, stop: int, task: Callable[[int], tuple]) -> int:
+        """Send frames ``nxt``, ``nxt + 1``, ... (before ``stop``; ``task(frame)`` gives its
+        posture and markers) to workers that are up and have a free slot; the first frame
+        not sent."""
+        self._drain()
+        for i in range(len(self.procs)):
+            while self.up[i] and self.free[i] and nxt < stop:
+                slot = self.free[i].pop()
+                q, items = task(nxt)
+                self.todo[i].send((nxt, slot, np.asarray(q, float), tuple(items)))
+                self.sent[nxt] = (i, slot)
+                nxt += 1
+        return nxt
+
+    def has(self, j: int) -> bool:
+        return j in self.ready
+
+    def poll(self, j: int) -> bool:
+        """Whether frame ``j`` (sent) is rendered, without waiting."""
+        self._drain()
+        return j in self.ready
+
+    def wait(self, j: int) -> None:
+        """Wait until frame ``j`` (sent) is rendered."""
+        i = self.sent[j][0]
+        while j not in self.ready:
+            if self.done[i].poll(0.5):
+                self._receive(i)
+            elif self.procs[i].exitcode is not None:
+                raise AzeeError(f"render worker {i + 1} stopped (exit code "
+                                f"{self.procs[i].exitcode})")  # fmt: skip
+
+    def take(self, j: int, out: np.ndarray) -> None:
+        """Copy frame ``j`` into ``out`` and free its slot."""
+        i, slot = self.sent.pop(j)
+        self.ready.discard(j)
+        out[:] = self.views[i][slot]
+        self.free[i].append(slot)
+
+    def _drain(self) -> None:
+        for i in range(len(self.procs)):
+            while self.done[i].poll():
+                self._receive(i)
+
+    def _receive(self, i: int) -> None:
+        msg = self.done[i].recv()
+        if msg == "up":
+            self.up[i] = True
+        elif isinstance(msg, int):
+            self.ready.add(msg)
+        else:
+            raise AzeeError(str(msg))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for c in self.todo:
+            with contextlib.suppress(OSError):
+                c.send(None)
+        for p in self.procs:
+            p.join(timeout=0 if exc[0] is not None else 5)
             if p.is_alive():
                 p.terminate()
-        for p in procs:
-            p.join()
-        for r in ready:
-            r.close()
-            r.join_thread()
+                p.join()
+        for c in self.todo + self.done:
+            c.close()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -509,9 +598,10 @@ class _WorkerJob:
     antialias: bool
 
 
-def _render_worker(job: _WorkerJob, tasks, slots, free, ready) -> None:
-    """One render worker: frame ``j`` of ``tasks`` into slot ``j % WORKER_SLOTS`` once the
-    parent freed it; ``j`` (or an error message) on ``ready``."""
+def _render_worker(job: _WorkerJob, slots, todo, done) -> None:
+    """One render worker: ``up`` on the pipe ``done`` once its renderer works, then for
+    each ``(frame, slot, q, items)`` from the pipe ``todo`` the image into ``slot`` and
+    ``frame`` on ``done`` (or an error message, then it stops), until ``None``."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
@@ -520,16 +610,18 @@ def _render_worker(job: _WorkerJob, tasks, slots, free, ready) -> None:
         with FrameRenderer(camera=job.camera, size=job.size, antialias=job.antialias) as fr:
             w, h = fr.render_size
             views = np.frombuffer(slots, np.uint8).reshape(WORKER_SLOTS, h, w, 3)
-            for j, (q, items) in enumerate(tasks):
-                free.acquire()
-                fr.draw(q, items, out=views[j % WORKER_SLOTS])
-                ready.put(j)
+            fr.draw(fr.model.qpos0, out=views[0])  # compiles the shaders before any frame
+            done.send("up")
+            while (task := todo.recv()) is not None:
+                j, slot, q, items = task
+                fr.draw(q, items, out=views[slot])
+                done.send(j)
+    except EOFError:  # the parent is gone
+        pass
     except Exception as e:  # noqa: BLE001  (reported to the parent, which raises it)
-        ready.put(str(e) if isinstance(e, AzeeError) else f"rendering failed: "
-                  f"{type(e).__name__}: {e}")  # fmt: skip
-    finally:
-        ready.close()
-        ready.join_thread()
+        with contextlib.suppress(OSError):
+            done.send(str(e) if isinstance(e, AzeeError) else f"rendering failed: "
+                      f"{type(e).__name__}: {e}")  # fmt: skip
 
 
 class Encoder:

@@ -483,8 +483,10 @@ def render_frames(
                 yield img
 
 
-#: Frames a video's renderers may be ahead of the encoder, at most.
-AHEAD = 12
+#: Frames a video's renderers may be ahead of the frame the encoder waits for, at most.
+#: Fewer than the encoder's buffers (QUEUE_FRAMES + 2): the frames this process renders
+#: ahead hold one each until their turn.
+AHEAD = 6
 
 
 class _Workers:

@@ -156,14 +156,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--examples", nargs="+", default=["bien", "arbre", "pointing"])
+    ap.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS),
+                    metavar="NAME", help="settings to run (default: all; 'before' is the base)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "render.json"))
     args = ap.parse_args()
+    variants = {v: VARIANTS[v] for v in VARIANTS if v in args.variants or v == "before"}
     info = machine()
     clips = {n: load_clip(ROOT / "examples" / f"{n}.json") for n in args.examples}
-    samples: dict[str, dict[str, list]] = {v: {"fps": [], "cpu": []} for v in VARIANTS}
+    samples: dict[str, dict[str, list]] = {v: {"fps": [], "cpu": [], "load": []} for v in variants}
     with tempfile.TemporaryDirectory() as tmp:
         for run in range(args.runs):
-            for v, fn in VARIANTS.items():
+            for v, fn in variants.items():
                 frames, wall, cpu = 0, 0.0, 0.0
                 for clip in clips.values():
                     fps, cpf = measure(fn, clip, Path(tmp))
@@ -171,8 +174,10 @@ def main() -> None:
                     frames, wall, cpu = frames + n, wall + n / fps, cpu + cpf * n
                 samples[v]["fps"].append(frames / wall)
                 samples[v]["cpu"].append(cpu / frames)
-                print(f"run {run + 1}: {v:13s} {frames / wall:5.1f} fps, "
-                      f"{1e3 * cpu / frames:6.1f} ms CPU a frame", flush=True)
+                samples[v]["load"].append(os.getloadavg()[0])
+                print(f"run {run + 1}: {v:24s} {frames / wall:5.1f} fps, "
+                      f"{1e3 * cpu / frames:6.1f} ms CPU a frame, load {os.getloadavg()[0]:.1f}",
+                      flush=True)  # fmt: skip
     info["load_average_after"] = os.getloadavg()
     result = {"machine": info, "size": SIZE, "examples": args.examples, "runs": args.runs,
               "frames": int(sum(len(c.qpos) for c in clips.values())), "variants": {}}  # fmt: skip
@@ -181,6 +186,8 @@ def main() -> None:
         fps, cpu = statistics.median(s["fps"]), statistics.median(s["cpu"])
         result["variants"][v] = {"fps_median": fps, "fps_runs": s["fps"],
                                  "cpu_ms_per_frame_median": 1e3 * cpu,
+                                 "cpu_ms_per_frame_runs": [1e3 * c for c in s["cpu"]],
+                                 "load_average_1min_runs": s["load"],
                                  "speedup_vs_before": fps / base}  # fmt: skip
     print(json.dumps(result, indent=1))
     Path(args.out).write_text(json.dumps(result, indent=1) + "\n")

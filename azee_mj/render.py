@@ -47,7 +47,7 @@ SUPERSAMPLE = 1.5
 #: Encoded frames waiting for the encoder thread, at most.
 QUEUE_FRAMES = 8
 #: Frames each render worker may have rendered ahead of the encoder, at most.
-WORKER_SLOTS = 4
+WORKER_SLOTS = 3
 #: Videos shorter than this many frames are rendered in this process only (starting a
 #: worker costs about as much as rendering this many frames).
 MIN_WORKER_FRAMES = 24
@@ -486,7 +486,7 @@ def render_frames(
 #: Frames a video's renderers may be ahead of the frame the encoder waits for, at most.
 #: Fewer than the encoder's buffers (QUEUE_FRAMES + 2): the frames this process renders
 #: ahead hold one each until their turn.
-AHEAD = 6
+AHEAD = 9
 
 
 class _Workers:

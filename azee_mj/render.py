@@ -41,12 +41,13 @@ TESSELLATION = (16, 10)
 MULTISAMPLES = 4
 #: Antialiasing by supersampling: an antialiased frame is rendered this many times larger in
 #: each direction (without multisampling) and scaled down with a bicubic filter. In software
-#: GL this costs about half of what 4x multisampling does, for smoother edges than it
-#: (docs/benchmarks.md, "Rendering speed").
+#: GL this costs about two thirds of what 4x multisampling does, and is as close to a
+#: 4x-supersampled reference (docs/benchmarks.md, "Rendering speed").
 SUPERSAMPLE = 1.5
 #: Encoded frames waiting for the encoder thread, at most.
 QUEUE_FRAMES = 8
-#: Frames each render worker may have rendered ahead of the encoder, at most.
+#: Frames handed to each render worker and not yet taken from it, at most (its shared-memory
+#: slots).
 WORKER_SLOTS = 3
 #: Videos shorter than this many frames are rendered in this process only (starting a
 #: worker costs about as much as rendering this many frames).
@@ -131,7 +132,7 @@ def scene_model(width: int = 0, height: int = 0, *, multisample: bool = True) ->
     ``multisample``: 4x multisampling for a ``mujoco.Renderer`` on it (:class:`FrameRenderer`
     turns it off and supersamples instead)."""
     m = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
-    if width and height:  # a larger buffer than the image costs its clearing every frame
+    if width and height:  # no larger than the image: memory
         m.vis.global_.offwidth, m.vis.global_.offheight = width, height
     q = m.vis.quality
     # Each looks the same at these sizes and costs less in software GL: a 1024 shadow map

@@ -9,11 +9,12 @@ first time something renders. Units: metres, seconds.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from azee_mj import score as sc
 from azee_mj.errors import AzeeError
-from azee_mj.markers import Clip, Targets, add_markers, markers
+from azee_mj.markers import Clip, Marker, Targets, add_markers, markers
 from azee_mj.model import SCENE_PATH
 
 #: The fixed cameras of ``scene.xml``, in the order ``C`` cycles them in the viewer.
@@ -35,10 +36,22 @@ DEFAULT_SIZE = (640, 480)
 SHADOW_SIZE = 1024
 #: Tessellation of capsules, spheres and ellipsoids in offscreen renders: (slices, stacks).
 TESSELLATION = (16, 10)
-#: Multisampling of offscreen renders (samples per pixel) with and without antialiasing.
-SAMPLES = {True: 4, False: 0}
+#: Multisampling (samples per pixel) of :func:`scene_model` for callers that render with
+#: ``mujoco.Renderer`` themselves.
+MULTISAMPLES = 4
+#: Antialiasing by supersampling: an antialiased frame is rendered this many times larger in
+#: each direction (without multisampling) and scaled down with a bicubic filter. In software
+#: GL this costs about two thirds of what 4x multisampling does, and is as close to a
+#: 4x-supersampled reference (docs/benchmarks.md, "Rendering speed").
+SUPERSAMPLE = 1.5
 #: Encoded frames waiting for the encoder thread, at most.
 QUEUE_FRAMES = 8
+#: Frames handed to each render worker and not yet taken from it, at most (its shared-memory
+#: slots).
+WORKER_SLOTS = 3
+#: Videos shorter than this many frames are rendered in this process only (starting a
+#: worker costs about as much as rendering this many frames).
+MIN_WORKER_FRAMES = 24
 
 RENDER_HINT = "pip install azee_mj[render]"
 
@@ -113,20 +126,40 @@ def gl_backend(probe: Callable[[str], bool] | None = None) -> str:
 # ---------------------------------------------------------------------------------------
 
 
-def scene_model(width: int = 0, height: int = 0, *, antialias: bool = True) -> mujoco.MjModel:
-    """The signer on its floor with lights and cameras, with room for a ``width`` x
-    ``height`` offscreen buffer, set up for software GL (see docs/rendering.md)."""
+def scene_model(width: int = 0, height: int = 0, *, multisample: bool = True) -> mujoco.MjModel:
+    """The signer on its floor with lights and cameras, with an offscreen buffer of exactly
+    ``width`` x ``height`` (when given), set up for software GL (see docs/rendering.md).
+    ``multisample``: 4x multisampling for a ``mujoco.Renderer`` on it (:class:`FrameRenderer`
+    turns it off and supersamples instead)."""
     m = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
-    m.vis.global_.offwidth = max(m.vis.global_.offwidth, width)
-    m.vis.global_.offheight = max(m.vis.global_.offheight, height)
+    if width and height:  # no larger than the image: memory
+        m.vis.global_.offwidth, m.vis.global_.offheight = width, height
     q = m.vis.quality
     # Each looks the same at these sizes and costs less in software GL: a 1024 shadow map
     # (not 4096), and 16 x 10 facets per round geom (not 28 x 16; every geom is drawn in
     # several passes a frame, for the shadow map and the lights).
     q.shadowsize = min(q.shadowsize, SHADOW_SIZE)
     q.numslices, q.numstacks = min(q.numslices, TESSELLATION[0]), min(q.numstacks, TESSELLATION[1])
-    q.offsamples = min(q.offsamples, SAMPLES[antialias])
+    q.offsamples = min(q.offsamples, MULTISAMPLES) if multisample else 0
     return m
+
+
+def render_size(size: tuple[int, int], antialias: bool = True) -> tuple[int, int]:
+    """The (W, H) actually rendered for an image of ``size``: :data:`SUPERSAMPLE` times
+    larger (rounded to even numbers) when antialiased, ``size`` otherwise."""
+    if not antialias:
+        return size
+    return tuple(2 * round(v * SUPERSAMPLE / 2) for v in size)  # type: ignore[return-value]
+
+
+def downscale(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``img`` (H, W, 3) uint8 scaled to ``size`` (W, H) with a bicubic filter (Pillow's,
+    which widens the filter when shrinking, so every rendered pixel counts)."""
+    if (img.shape[1], img.shape[0]) == tuple(size):
+        return img
+    from PIL import Image
+
+    return np.asarray(Image.fromarray(img).resize(tuple(size), Image.Resampling.BICUBIC))
 
 
 def camera_id(model: mujoco.MjModel, camera: str) -> int:
@@ -149,23 +182,43 @@ def resample(clip: Clip, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return t, (1 - w) * clip.qpos[i0] + w * clip.qpos[i1]
 
 
+class Decorations:
+    """The markers drawn over each frame of ``clip`` (:func:`~azee_mj.markers.markers`)
+    when ``targets`` is on, none otherwise; computed on a scene model of its own, so that
+    they can be handed to a renderer in another process."""
+
+    def __init__(self, clip: Clip, targets: bool = False):
+        self.clip, self.on = clip, targets
+        if targets:
+            self.model = scene_model()
+            self.data = mujoco.MjData(self.model)
+            self.targets = Targets(clip.score) if clip.score is not None else None
+
+    def __call__(self, frame: int | None) -> tuple[Marker, ...]:
+        if not self.on or frame is None:
+            return ()
+        return tuple(markers(self.model, self.data, self.clip, frame, self.targets))
+
+
 class FrameRenderer:
     """Renders postures of the signer offscreen from one camera (a ``mujoco.Renderer`` on
-    ``scene.xml``, reused for every frame); ``targets`` adds the constraint markers,
-    ``antialias=False`` turns multisampling off (about twice as fast in software GL, with
-    jagged edges). Use as a context manager."""
+    ``scene.xml``, reused for every frame); ``targets`` adds the constraint markers of
+    ``clip``. ``antialias`` renders :data:`SUPERSAMPLE` times larger (``render_size``) and
+    scales down; ``antialias=False`` renders at ``size`` (about 1.5 times as fast in
+    software GL, with jagged edges). Use as a context manager."""
 
-    def __init__(self, clip: Clip, *, camera: str = "front", size=DEFAULT_SIZE,
+    def __init__(self, clip: Clip | None = None, *, camera: str = "front", size=DEFAULT_SIZE,
                  targets: bool = False, antialias: bool = True):  # fmt: skip
         gl_backend()
-        w, h = size
-        self.size = (w, h)
-        self.model = scene_model(w, h, antialias=antialias)
+        self.size = (int(size[0]), int(size[1]))
+        self.render_size = render_size(self.size, antialias)
+        w, h = self.render_size
+        self.model = scene_model(w, h, multisample=False)
         self.cam = camera_id(self.model, camera)
         self.data = mujoco.MjData(self.model)
         self.clip = clip
-        self.targets = Targets(clip.score) if targets and clip.score is not None else None
-        self.decorate = targets
+        self.decorations = Decorations(clip, targets) if clip is not None else None
+        self._full = np.empty((h, w, 3), np.uint8)
         try:
             self.r = mujoco.Renderer(self.model, height=h, width=w)
         except Exception as e:  # noqa: BLE001  (GL errors come in several types)
@@ -174,20 +227,30 @@ class FrameRenderer:
         # fixed cameras, and drawing it costs a whole extra pass of the scene.
         self.r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
 
-    def render(self, q: np.ndarray, frame: int | None = None,
-               out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-        """(H, W, 3) uint8 image of posture ``q`` (written into ``out`` if given); markers of
-        clip frame ``frame`` if any."""
+    def draw(self, q: np.ndarray, items: Sequence[Marker] = (),
+             out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """(H, W, 3) uint8 image of posture ``q`` with ``items`` drawn over it, at
+        ``render_size`` (written into ``out`` if given)."""
         d = self.data
-        items = []
-        if self.decorate and frame is not None:
-            items = markers(self.model, d, self.clip, frame, self.targets)
         d.qpos[:] = q
         mujoco.mj_forward(self.model, d)
         self.r.update_scene(d, camera=self.cam)
         if items:
             add_markers(self.r.scene, items)
         return self.r.render(out=out)
+
+    def render(self, q: np.ndarray, frame: int | None = None,
+               out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """(H, W, 3) uint8 image of posture ``q`` at ``size`` (written into ``out`` if
+        given); markers of clip frame ``frame`` if any."""
+        items = self.decorations(frame) if self.decorations is not None else ()
+        if self.render_size == self.size:
+            return self.draw(q, items, out)
+        img = downscale(self.draw(q, items, self._full), self.size)
+        if out is None:
+            return img
+        out[:] = img
+        return out
 
     def close(self) -> None:
         self.r.close()
@@ -231,7 +294,7 @@ def parse_size(text: str) -> tuple[int, int]:
 OUTPUT_SUFFIXES = (".mp4", ".gif", ".png")
 
 
-def check_render_options(out, size, fps, time) -> None:
+def check_render_options(out, size, fps, time, workers: int | None = None) -> None:
     """Raise :class:`AzeeError` for an output or option render cannot honour."""
     suffix = Path(out).suffix.lower()
     if suffix not in OUTPUT_SUFFIXES:
@@ -244,6 +307,8 @@ def check_render_options(out, size, fps, time) -> None:
         raise AzeeError(f"--fps: must be in (0, 240], got {fps:g}")
     if time is not None and suffix != ".png":
         raise AzeeError(f"--time: only for a .png still, not {suffix}")
+    if workers is not None and workers < 1:
+        raise AzeeError(f"--jobs: must be at least 1, got {workers}")
 
 
 def _need(module: str):
@@ -266,20 +331,24 @@ def render(
     time: float | None = None,
     targets: bool = False,
     antialias: bool = True,
+    workers: int | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> Path:
     """Render ``clip`` to ``out`` by its suffix, atomically.
 
     ``.mp4`` / ``.gif``: the video at ``fps`` (default: the clip's). ``.png``: the frame at
     ``time`` [s], or without it a contact sheet of :func:`key_frames`, labelled.
-    ``antialias=False`` renders without multisampling: about twice as fast in software GL,
-    with visibly jagged edges. Video frames are encoded in a thread while the next renders.
-    Raises :class:`AzeeError` for bad options (before anything is written).
+    ``antialias`` supersamples (:data:`SUPERSAMPLE`); ``antialias=False`` is about 1.5 times
+    as fast in software GL, with visibly jagged edges. Video frames are rendered by
+    ``workers`` processes (default :func:`video_workers`), each rendering every
+    ``workers``-th frame, and encoded in order in a thread (an .mp4 is scaled down to
+    ``size`` by the encoder). Raises :class:`AzeeError` for bad options (before anything is
+    written) and when rendering fails; the output is then absent.
     """
     from azee_mj.files import atomic_path
 
     out = Path(out)
-    check_render_options(out, size, fps, time)
+    check_render_options(out, size, fps, time, workers)
     if camera not in CAMERAS:
         raise AzeeError(f"--camera: unknown camera {camera!r}; valid: {', '.join(CAMERAS)}")
     if time is not None and not (-1e-9 <= time <= clip.duration + 1e-9):
@@ -291,40 +360,271 @@ def render(
         _need("imageio_ffmpeg")
     imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
     pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
-    with FrameRenderer(clip, camera=camera, size=size, targets=targets,
-                       antialias=antialias) as fr:  # fmt: skip
-        if suffix == ".png":
+    if suffix == ".png":
+        with FrameRenderer(clip, camera=camera, size=size, targets=targets,
+                           antialias=antialias) as fr:  # fmt: skip
             if time is not None:
                 f = clip.frame_at(time)
                 img = pil.fromarray(fr.render(clip.qpos[f], f))
             else:
                 img = _contact_sheet(fr, clip, size, tick)
-            with atomic_path(out) as tmp:
-                img.save(tmp, format="PNG", optimize=True)
-            tick(1.0)
-            return out
-        vfps = float(fps or clip.fps)
-        times, qs = resample(clip, vfps)
         with atomic_path(out) as tmp:
-            if suffix == ".mp4":
-                # x264's veryfast preset: half the encoding CPU of its default, same quality.
-                w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264",
-                                       quality=7, macro_block_size=2, ffmpeg_log_level="error",
-                                       output_params=["-preset", "veryfast"])  # fmt: skip
-                with Encoder(w.append_data, (size[1], size[0], 3), close=w.close) as enc:
-                    for k, q in enumerate(qs):
-                        enc.put(fr.render(q, clip.frame_at(times[k]), out=enc.buffer()))
-                        tick((k + 1) / len(qs))
-            else:
-                frames = []
-                quantize = pil.Quantize.MEDIANCUT
-                for k, q in enumerate(qs):
-                    im = pil.fromarray(fr.render(q, clip.frame_at(times[k])))
-                    frames.append(im.quantize(colors=128, method=quantize))
-                    tick((k + 1) / len(qs))
-                frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
-                               duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
+            img.save(tmp, format="PNG", optimize=True)
+        tick(1.0)
+        return out
+    vfps = float(fps or clip.fps)
+    times, qs = resample(clip, vfps)
+    deco = Decorations(clip, targets)
+    items = [deco(clip.frame_at(t)) for t in times] if targets else None
+    n = len(qs)
+    jobs = video_workers(n, workers)
+    rw, rh = render_size(size, antialias)
+    with atomic_path(out) as tmp:
+        if suffix == ".mp4":
+            # x264's veryfast preset: half the encoding CPU of its default, same quality.
+            params = ["-preset", "veryfast"]
+            if (rw, rh) != tuple(size):  # supersampled: ffmpeg scales down, in its process
+                params += ["-vf", f"scale={size[0]}:{size[1]}:flags=bicubic"]
+            w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264", quality=7,
+                                   macro_block_size=2, ffmpeg_log_level="error",
+                                   output_params=params)  # fmt: skip
+            with Encoder(w.append_data, (rh, rw, 3), close=w.close) as enc:
+                for k, img in enumerate(render_frames(qs, items, camera=camera, size=size,
+                                                      antialias=antialias, workers=jobs,
+                                                      buffer=enc.buffer)):  # fmt: skip
+                    enc.put(img)
+                    tick((k + 1) / n)
+        else:
+            frames = []
+            quantize = pil.Quantize.MEDIANCUT
+            for k, img in enumerate(render_frames(qs, items, camera=camera, size=size,
+                                                  antialias=antialias, workers=jobs)):  # fmt: skip
+                im = pil.fromarray(downscale(img, size))
+                frames.append(im.quantize(colors=128, method=quantize))
+                tick((k + 1) / n)
+            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
+                           duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# Frames rendered by several processes
+# ---------------------------------------------------------------------------------------
+
+
+def video_workers(frames: int, workers: int | None = None) -> int:
+    """Processes that render a video of ``frames`` frames: ``workers`` if given, else 2
+    where 2 cores are usable; 1 (this process) for a video shorter than
+    :data:`MIN_WORKER_FRAMES` or on one core."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    if workers is None:
+        workers = 1 if frames < MIN_WORKER_FRAMES else min(2, cores)
+    return max(1, min(workers, frames))
+
+
+def render_frames(
+    qs: Sequence[np.ndarray] | np.ndarray,
+    items: Sequence[Sequence[Marker]] | None = None,
+    *,
+    camera: str = "front",
+    size: tuple[int, int] = DEFAULT_SIZE,
+    antialias: bool = True,
+    workers: int = 1,
+    buffer: Callable[[], np.ndarray] | None = None,
+) -> Iterator[np.ndarray]:
+    """The images of postures ``qs`` (with markers ``items[k]`` over frame ``k``), in order,
+    at :func:`render_size` (H, W, 3) uint8.
+
+    ``workers`` > 1: this process and ``workers - 1`` worker processes, each with its own
+    renderer, share the frames. This process renders from the start; a worker, once its
+    renderer is up, is handed the next frames (up to :data:`WORKER_SLOTS` at once, into
+    shared memory), while this process renders the frames after those. The frames are the
+    same, bit for bit, whoever renders them. ``buffer()`` gives the array each frame is
+    written into (a new one each time by default). A worker's error is raised here as
+    :class:`AzeeError`; closing the generator early (or an error) stops the workers.
+
+    The workers start with ``forkserver`` (``spawn`` where there is none): a script that
+    calls this with ``workers`` > 1 needs the ``if __name__ == "__main__":`` guard.
+    """
+    n = len(qs)
+    items = items if items is not None else [()] * n
+    rw, rh = render_size(size, antialias)
+    new = buffer or (lambda: np.empty((rh, rw, 3), np.uint8))
+    if workers <= 1:
+        with FrameRenderer(camera=camera, size=size, antialias=antialias) as fr:
+            for q, it in zip(qs, items, strict=True):
+                yield fr.draw(q, it, out=new())
+        return
+    with _Workers(workers - 1, camera, size, antialias) as pool, \
+            FrameRenderer(camera=camera, size=size, antialias=antialias) as fr:  # fmt: skip
+        here: dict[int, np.ndarray] = {}  # frames rendered here ahead of their turn
+        nxt = 0  # the first frame not yet rendered here nor handed to a worker
+        for k in range(n):
+            while k not in here and not pool.has(k):
+                nxt = pool.hand_out(nxt, min(n, k + AHEAD), lambda j: (qs[j], items[j]))
+                if k in pool.sent:
+                    if pool.poll(k):  # without waiting
+                        break
+                    if nxt < min(n, k + AHEAD):  # work here while the worker renders k
+                        here[nxt] = fr.draw(qs[nxt], items[nxt], out=new())
+                        nxt += 1
+                    else:
+                        pool.wait(k)
+                else:  # k == nxt: no worker free for it
+                    here[k] = fr.draw(qs[k], items[k], out=new())
+                    nxt = k + 1
+            if k in here:
+                yield here.pop(k)
+            else:
+                img = new()
+                pool.take(k, img)
+                yield img
+
+
+#: Frames a video's renderers may be ahead of the frame the encoder waits for, at most.
+#: Fewer than the encoder's buffers (QUEUE_FRAMES + 2): the frames this process renders
+#: ahead hold one each until their turn.
+AHEAD = 9
+
+
+class _Workers:
+    """Render worker processes for :func:`render_frames`, each with :data:`WORKER_SLOTS`
+    shared-memory frame slots; this process hands each frame to one worker and a free slot
+    of it."""
+
+    def __init__(self, count: int, camera: str, size, antialias: bool):
+        import multiprocessing
+
+        if "forkserver" in multiprocessing.get_all_start_methods():
+            ctx: Any = multiprocessing.get_context("forkserver")
+            ctx.set_forkserver_preload(["azee_mj.render"])  # imports once, not per worker
+        else:
+            ctx = multiprocessing.get_context("spawn")
+        w, h = render_size(size, antialias)
+        job = _WorkerJob(gl_backend(), camera, (int(size[0]), int(size[1])), antialias)
+        self.procs, self.todo, self.done, self.views = [], [], [], []
+        self.up = [False] * count  # the worker's renderer is ready
+        self.free = [list(range(WORKER_SLOTS)) for _ in range(count)]
+        self.sent: dict[int, tuple[int, int]] = {}  # frame -> (worker, slot)
+        self.ready: set[int] = set()  # frames rendered by workers, not taken yet
+        for i in range(count):
+            slots = ctx.RawArray("B", WORKER_SLOTS * w * h * 3)
+            self.views.append(np.frombuffer(slots, np.uint8).reshape(WORKER_SLOTS, h, w, 3))
+            todo_r, todo_w = ctx.Pipe(duplex=False)
+            done_r, done_w = ctx.Pipe(duplex=False)
+            self.todo.append(todo_w)
+            self.done.append(done_r)
+            p = ctx.Process(target=_render_worker, daemon=True, name=f"azee-mj render {i + 1}",
+                            args=(job, slots, todo_r, done_w))  # fmt: skip
+            p.start()
+            self.procs.append(p)
+            todo_r.close()  # the worker's ends: a worker that dies closes its pipes
+            done_w.close()
+
+    def hand_out(self, nxt: int, stop: int, task: Callable[[int], tuple]) -> int:
+        """Send frames ``nxt``, ``nxt + 1``, ... (before ``stop``; ``task(frame)`` gives its
+        posture and markers) to workers that are up and have a free slot; the first frame
+        not sent."""
+        self._drain()
+        for i in range(len(self.procs)):
+            while self.up[i] and self.free[i] and nxt < stop:
+                slot = self.free[i].pop()
+                q, items = task(nxt)
+                self.todo[i].send((nxt, slot, np.asarray(q, float), tuple(items)))
+                self.sent[nxt] = (i, slot)
+                nxt += 1
+        return nxt
+
+    def has(self, j: int) -> bool:
+        return j in self.ready
+
+    def poll(self, j: int) -> bool:
+        """Whether frame ``j`` (sent) is rendered, without waiting."""
+        self._drain()
+        return j in self.ready
+
+    def wait(self, j: int) -> None:
+        """Wait until frame ``j`` (sent) is rendered."""
+        i = self.sent[j][0]
+        while j not in self.ready:
+            if self.done[i].poll(0.5):
+                self._receive(i)
+            elif self.procs[i].exitcode is not None:
+                raise AzeeError(f"render worker {i + 1} stopped (exit code "
+                                f"{self.procs[i].exitcode})")  # fmt: skip
+
+    def take(self, j: int, out: np.ndarray) -> None:
+        """Copy frame ``j`` into ``out`` and free its slot."""
+        i, slot = self.sent.pop(j)
+        self.ready.discard(j)
+        out[:] = self.views[i][slot]
+        self.free[i].append(slot)
+
+    def _drain(self) -> None:
+        for i in range(len(self.procs)):
+            while self.done[i].poll():
+                self._receive(i)
+
+    def _receive(self, i: int) -> None:
+        msg = self.done[i].recv()
+        if msg == "up":
+            self.up[i] = True
+        elif isinstance(msg, int):
+            self.ready.add(msg)
+        else:
+            raise AzeeError(str(msg))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for c in self.todo:
+            with contextlib.suppress(OSError):
+                c.send(None)
+        for p in self.procs:
+            p.join(timeout=0 if exc[0] is not None else 5)
+            if p.is_alive():
+                p.terminate()
+                p.join()
+        for c in self.todo + self.done:
+            c.close()
+
+
+@dataclasses.dataclass(frozen=True)
+class _WorkerJob:
+    backend: str
+    camera: str
+    size: tuple[int, int]
+    antialias: bool
+
+
+def _render_worker(job: _WorkerJob, slots, todo, done) -> None:
+    """One render worker: ``up`` on the pipe ``done`` once its renderer works, then for
+    each ``(frame, slot, q, items)`` from the pipe ``todo`` the image into ``slot`` and
+    ``frame`` on ``done`` (or an error message, then it stops), until ``None``."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
+    try:
+        os.environ["MUJOCO_GL"] = job.backend
+        with FrameRenderer(camera=job.camera, size=job.size, antialias=job.antialias) as fr:
+            w, h = fr.render_size
+            views = np.frombuffer(slots, np.uint8).reshape(WORKER_SLOTS, h, w, 3)
+            fr.draw(fr.model.qpos0, out=views[0])  # compiles the shaders before any frame
+            done.send("up")
+            while (task := todo.recv()) is not None:
+                j, slot, q, items = task
+                fr.draw(q, items, out=views[slot])
+                done.send(j)
+    except EOFError:  # the parent is gone
+        pass
+    except Exception as e:  # noqa: BLE001  (reported to the parent, which raises it)
+        with contextlib.suppress(OSError):
+            done.send(str(e) if isinstance(e, AzeeError) else f"rendering failed: "
+                      f"{type(e).__name__}: {e}")  # fmt: skip
 
 
 class Encoder:

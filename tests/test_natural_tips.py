@@ -12,22 +12,7 @@ from azee_mj.kinematics import Kinematics
 from azee_mj.schedule import make_solver
 from azee_mj.timeline import realize
 
-FLAT = {"flat": 1.0}
-INDEX = {"fist": 1.0, "index_bend": -1.04, "index_hook": -1.1}
-HOLD = (0.4, 0.8)
-DEG = np.pi / 180.0
-
-
-def contact_score(site, at, strong):
-    morphs = [{"type": "morph", "id": k, "weight": v, "side": "s"} for k, v in strong.items()]
-    return {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "C", "kind": "sync", "start": 0.0, "end": HOLD[1], "children": [
-            {"name": "SHAPE", "kind": "cstr", "start": 0.0, "end": HOLD[1], "constraints": morphs},
-            {"name": "TOUCH", "kind": "cstr", "start": HOLD[0], "end": HOLD[1],
-             "constraints": [{"type": "place", "site": site, "at": at}]},
-        ]},
-    }  # fmt: skip
+from test_natural_contacts import DEG, FLAT, HOLD, INDEX, contact_score
 
 
 @pytest.fixture(scope="module")

@@ -212,6 +212,7 @@ class Motion:
         limbs = {b.path: self.comp.site_tracks(sites[b.path]) for b in tp}
         curve = q.copy()
         still = _next_still(moving)
+        needs: dict[tuple, set[int]] = {}  # constraints -> the dofs they move
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = [], set()
@@ -263,7 +264,10 @@ class Motion:
             # its constraints are met stops at once, and would leave them still until the
             # next key. The others follow the blend, at most a step a frame from the frame
             # before.
-            needed = set(self.solver.free_dofs(ik.IKProblem(tuple(cons))).tolist())
+            key = tuple(cons)
+            if key not in needs:
+                needs[key] = set(self.solver.free_dofs(ik.IKProblem(key)).tolist())
+            needed = needs[key]
             moved = sorted(j for j in free if self._dofs([j])[0] in needed) or sorted(free)
             rest = sorted(set(free) - set(moved))
             step, q0 = self.frame_step, q[f].copy()

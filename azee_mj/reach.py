@@ -302,13 +302,22 @@ def _aim_hand(solver: ik.Solver, q: np.ndarray, joints, site: str, target: np.nd
             cost += 2.0 * (1.0 + c) * AIM_M_PER_RAD**2  # ~ (angle from opposed)^2
         return cost
 
-    best = min((np.array(x) for x in np.stack(np.meshgrid(
-        *[np.linspace(a, b, 5) for a, b in zip(lo, hi)], indexing="ij"), -1).reshape(-1, len(jid))),
-        key=miss)  # fmt: skip
-    x = optimize.minimize(miss, best, method="Nelder-Mead",
-                          options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": 200}).x
-    q[adr] = np.clip(x, lo, hi)
+    q[adr] = np.clip(_box_search(miss, _grid(lo, hi, 5), 200), lo, hi)
     return q
+
+
+def _grid(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
+    """(n ** k, k) points of a regular grid over the box ``lo``..``hi`` (k joints)."""
+    return np.stack(np.meshgrid(*[np.linspace(a, b, n) for a, b in zip(lo, hi)],
+                                indexing="ij"), -1).reshape(-1, len(lo))  # fmt: skip
+
+
+def _box_search(miss, grid: np.ndarray, maxfev: int) -> np.ndarray:
+    """The minimum of ``miss`` over joint values: the best point of ``grid``, then
+    Nelder-Mead from it (at most ``maxfev`` evaluations; ``miss`` clips to the box)."""
+    best = min(grid, key=miss)
+    return optimize.minimize(miss, best, method="Nelder-Mead",
+                             options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": maxfev}).x
 
 
 #: How much one radian of two surfaces turned from face to face weighs against a distance
@@ -433,16 +442,12 @@ def _turned_upper_arms(solver: ik.Solver, goals, problem: ik.IKProblem, q0: np.n
         lo, hi = m.jnt_range[jid].T
         q = q0.copy()
         miss = _orient_miss(solver, q, adr, lo, hi, solver.body_id(arm.upper), rules, vecs)
-        grid = np.stack(np.meshgrid(*[np.linspace(a, b, 7) for a, b in zip(lo, hi)],
-                                    indexing="ij"), -1).reshape(-1, 3)  # fmt: skip
+        grid = _grid(lo, hi, 7)
         # one start on each side of the abduction's right angle (two shoulder branches)
         for side in (grid[:, 1] <= np.pi / 2, grid[:, 1] > np.pi / 2):
             if not side.any():
                 continue
-            best = min(grid[side], key=miss)
-            x = optimize.minimize(miss, best, method="Nelder-Mead",
-                                  options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": 300}).x
-            q[adr] = np.clip(x, lo, hi)
+            q[adr] = np.clip(_box_search(miss, grid[side], 300), lo, hi)
             yield q.copy()
 
 

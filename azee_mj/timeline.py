@@ -245,6 +245,8 @@ class Realizer:
         #: constraint label -> why its key posture misses it (see :mod:`azee_mj.diagnose`)
         self.reasons: dict[str, str] = {}
         self.arms = reach.arms_of(self.smap)
+        #: arm -> the model site of its palm's centre (AZee ``PA``), or None
+        self._palms = {a: self._palm_site(a) for a in self.arms}
         self._azee_site = {model: azee for azee, model in self.smap.sites.items()}
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
@@ -254,6 +256,11 @@ class Realizer:
         self._upright = () if chest is None else (
             cn.Orient(chest.body, chest.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)),
                       np.radians(UPRIGHT_TOL_DEG), "upright"),)  # fmt: skip
+
+    def _take(self, state: np.ndarray, tracks, q: np.ndarray) -> None:
+        """Copy the joints of ``tracks`` from posture ``q`` into ``state`` (in place)."""
+        for t in tracks:
+            state[self.track_dofs[t]] = q[self.track_dofs[t]]
 
     def _arm_carrying(self, site: str, part: str = "hand") -> Arm | None:
         """The arm whose ``part`` (``hand`` or ``upper``) carries model ``site``, or None."""
@@ -272,7 +279,7 @@ class Realizer:
         arm = self._arm_carrying(site, "upper")
         if arm is None or self._hand_of(site) is arm:
             return None
-        palm = self._palm_site(arm)
+        palm = self._palms[arm]
         return None if palm is None else (arm, palm, self._across_at(arm))
 
     def _limb_root(self, site: str) -> int | None:
@@ -335,8 +342,7 @@ class Realizer:
             solved = []
             for g in groups:
                 solved.append(self._solve_group(g, items, state, keys, t0))
-                for t in g:
-                    state[self.track_dofs[t]] = solved[-1][0].qpos[self.track_dofs[t]]
+                self._take(state, g, solved[-1][0].qpos)
             if self.mode is Mode.MULTITRACK and any(not r.converged for r, _, _ in solved):
                 groups, solved = self._recruit_trunk(groups, solved, items, before, keys, t0)
             for group, (res, cons, free) in zip(groups, solved):
@@ -390,17 +396,14 @@ class Realizer:
         state = before.copy()
         first_failed = next(i for i, g in enumerate(groups) if g in failed)
         for g, (r, _, _) in zip(groups[:first_failed], solved):
-            for t in g:  # solved before it (hand shapes): what the helped group builds on
-                state[self.track_dofs[t]] = r.qpos[self.track_dofs[t]]
+            self._take(state, g, r.qpos)  # solved before it: what the helped group builds on
         first = self._lean_less(self._solve_group(helped, items, state, keys, t0, upright=True),
                                 helped, items, keys, t0)  # fmt: skip
         out = [first]
-        for t in helped:
-            state[self.track_dofs[t]] = first[0].qpos[self.track_dofs[t]]
+        self._take(state, helped, first[0].qpos)
         for g in met:
             out.append(self._solve_group(g, items, state, keys, t0, reuse=False))
-            for t in g:
-                state[self.track_dofs[t]] = out[-1][0].qpos[self.track_dofs[t]]
+            self._take(state, g, out[-1][0].qpos)
         tries = [([helped, *met], out)]
         if met and not all(r.converged for r, _, _ in out):
             group = set().union(*groups) | {"spine"}

@@ -10,9 +10,7 @@ five of the six (``bench/results/natural-previous.json``).
 import numpy as np
 import pytest
 
-from azee_mj import load_model
 from azee_mj.ergonomics import ergonomics
-from azee_mj.schedule import make_solver
 from azee_mj.timeline import realize
 
 FLAT = {"flat": 1.0}
@@ -49,16 +47,6 @@ CASES = [
     # the F hand shape's thumb and index tips meet
     pytest.param("@T_TIP(s)", "@I_TIP(s)", {"hs_f": 1.0}, None, id="pinch-thumb-index-R"),
 ]  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def solver():
-    return make_solver()
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
 
 
 @pytest.mark.parametrize("site, at, strong, weak", CASES)

@@ -6,23 +6,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from azee_mj import load_model, natural
+from azee_mj import natural
 from azee_mj.ergonomics import ergonomics
 from azee_mj.kinematics import Kinematics
-from azee_mj.schedule import make_solver
 from azee_mj.timeline import realize
 
 from test_natural_contacts import DEG, FLAT, HOLD, INDEX, contact_score
-
-
-@pytest.fixture(scope="module")
-def solver():
-    return make_solver()
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
 
 
 def held_posture(solver, site, at, strong):

@@ -29,14 +29,6 @@ def clip() -> mk.Clip:
     return mk.Clip.from_rollout(realize(GOOD), sc.load_score(GOOD), "good")
 
 
-@pytest.fixture(scope="module")
-def gl() -> str:
-    try:
-        return rd.gl_backend()
-    except AzeeError as e:
-        pytest.skip(f"no OpenGL backend works here, so nothing can be rendered: {e}")
-
-
 def _workers_alive() -> list[str]:
     return [p.name for p in multiprocessing.active_children() if p.name.startswith("azee-mj")]
 

@@ -39,14 +39,6 @@ def clip(rollout) -> mk.Clip:
     return mk.Clip.from_rollout(rollout, sc.load_score(GOOD), "good")
 
 
-@pytest.fixture(scope="module")
-def gl() -> str:
-    try:
-        return rd.gl_backend()
-    except AzeeError as e:
-        pytest.skip(f"no OpenGL backend works here, so nothing can be rendered: {e}")
-
-
 # ---------------------------------------------------------------------------------------
 # Decorations, without a window
 # ---------------------------------------------------------------------------------------

@@ -1,8 +1,9 @@
 /* The posture solver's inner loop against MuJoCo's C API (see azee_mj/ik.py).
 
    A Core holds one problem compiled by ik.Plan: its row blocks, the free dofs and the
-   per-body-pair contact floor. It evaluates the scaled residual rows and their Jacobian over
-   the free dofs (constraint rows, then one row per contact deeper than its pair's floor) and
+   per-body-pair contact floor and the geom pairs that can collide. It evaluates the scaled
+   residual rows and their Jacobian over the free dofs (constraint rows, then one row per
+   contact deeper than its pair's floor) and
    runs one Levenberg-Marquardt run whose steps are box-constrained QPs (mju_boxQP).
    Constraints of a form the core does not know are written by a Python callback.
 
@@ -62,6 +63,9 @@ typedef struct {
   double* inv;    /* (nrows,) 1/tol per row (1 for generic rows) */
   int* free;      /* (nfree,) */
   double* floor;  /* (nbody * nbody,) */
+  int npair;
+  int* pair;      /* (npair, 2) geoms, each pair in mjCOLLISIONFUNC's type order */
+  double* pmargin;  /* (npair,) margin plus gap of each pair */
   double *tmp, *tmp2, *j1, *j2; /* (3, nv) */
   /* evaluation buffers: two sets for the LM (current and candidate) */
   int cap;
@@ -250,29 +254,41 @@ static int evaluate(Core* s, const double* q, int collide, int b) {
   int rows = s->nrows;
   double depth = 0.0;
   if (collide) {
-    mj_collision(m, d);
-    int n = d->ncon;
-    if (n && grow(s, s->nrows + n)) return PyErr_NoMemory(), -1;
-    r = s->r[b];
-    J = s->J[b];
+    /* The pair list's narrowphase, as mj_collision runs it (same functions, bounding-sphere
+       filter and order) but only on the pairs that can move relative to each other. */
+    mjPreContact pc[mjMAXCONPAIR];
     double worst = -INFINITY;
-    for (int c = 0; c < n; c++) {
-      const mjContact* con = d->contact + c;
-      int b1 = m->geom_bodyid[con->geom[0]], b2 = m->geom_bodyid[con->geom[1]];
+    for (int p = 0; p < s->npair; p++) {
+      int g1 = s->pair[2 * p], g2 = s->pair[2 * p + 1];
+      double margin = s->pmargin[p];
+      const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
+      double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
+      double bound = m->geom_rbound[g1] + m->geom_rbound[g2] + margin;
+      if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 && dx * dx + dy * dy + dz * dz > bound * bound)
+        continue;
+      int n = mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, margin);
+      int b1 = m->geom_bodyid[g1], b2 = m->geom_bodyid[g2];
       double fl = s->floor[b1 * s->nbody + b2];
-      if (!(con->dist < fl)) continue;
-      if (fl - con->dist > worst) worst = fl - con->dist;
-      mj_jac(m, d, s->j1, NULL, con->pos, b1);
-      mj_jac(m, d, s->j2, NULL, con->pos, b2);
-      const double* nrm = con->frame;
-      double* row = J + (size_t)rows * nf;
-      for (int j = 0; j < nf; j++) {
-        int f = s->free[j];
-        double x = 0;
-        for (int i = 0; i < 3; i++) x += nrm[i] * (s->j2[i * nv + f] - s->j1[i * nv + f]);
-        row[j] = x / COLLISION_TOL;
+      for (int c = 0; c < n; c++) {
+        const mjPreContact* con = pc + c;
+        if (!(con->dist < fl)) continue;
+        if (grow(s, rows + 1)) return PyErr_NoMemory(), -1;
+        r = s->r[b];
+        J = s->J[b];
+        if (fl - con->dist > worst) worst = fl - con->dist;
+        mj_jac(m, d, s->j1, NULL, con->pos, b1);
+        mj_jac(m, d, s->j2, NULL, con->pos, b2);
+        double nrm[3] = {con->normal[0], con->normal[1], con->normal[2]};
+        mju_normalize3(nrm); /* as mj_collision's contact frame */
+        double* row = J + (size_t)rows * nf;
+        for (int j = 0; j < nf; j++) {
+          int f = s->free[j];
+          double x = 0;
+          for (int i = 0; i < 3; i++) x += nrm[i] * (s->j2[i * nv + f] - s->j1[i * nv + f]);
+          row[j] = x / COLLISION_TOL;
+        }
+        r[rows++] = (con->dist - fl) / COLLISION_TOL;
       }
-      r[rows++] = (con->dist - fl) / COLLISION_TOL;
     }
     if (worst > 0) depth = worst;
   }
@@ -355,6 +371,8 @@ static void Core_dealloc(Core* s) {
   free(s->inv);
   free(s->free);
   free(s->floor);
+  free(s->pair);
+  free(s->pmargin);
   free(s->hard);
   free(s->edof);
   free(s->escale);
@@ -379,12 +397,12 @@ static void Core_dealloc(Core* s) {
 /* Core(model_addr, data_addr, owner, blocks_i (nblock*10 int32), blocks_d (nblock*11 f64),
         terms_i (nterm*2 int32), terms_d (nterm f64), inv (nrows f64), free (int32),
         floor (nbody*nbody f64), r (nrows f64, writable), J (nrows*nv f64, writable), callback,
-        hard (nhard*2 int32)) */
+        hard (nhard*2 int32), pairs (npair*2 int32: the geom pairs to collide, in order)) */
 static int Core_init(Core* s, PyObject* args, PyObject* kw) {
   unsigned long long ma, da;
-  PyObject *owner, *obi, *obd, *oti, *otd, *oinv, *ofree, *ofloor, *or_, *oJ, *cb, *ohard;
-  if (!PyArg_ParseTuple(args, "KKOOOOOOOOOOOO", &ma, &da, &owner, &obi, &obd, &oti, &otd, &oinv,
-                        &ofree, &ofloor, &or_, &oJ, &cb, &ohard))
+  PyObject *owner, *obi, *obd, *oti, *otd, *oinv, *ofree, *ofloor, *or_, *oJ, *cb, *ohard, *opair;
+  if (!PyArg_ParseTuple(args, "KKOOOOOOOOOOOOO", &ma, &da, &owner, &obi, &obd, &oti, &otd, &oinv,
+                        &ofree, &ofloor, &or_, &oJ, &cb, &ohard, &opair))
     return -1;
   s->m = (mjModel*)(uintptr_t)ma;
   s->d = (mjData*)(uintptr_t)da;
@@ -428,6 +446,27 @@ static int Core_init(Core* s, PyObject* args, PyObject* kw) {
   s->hard = malloc(sizeof(int) * 2 * (s->nhard + 1));
   for (int h = 0; h < 2 * s->nhard; h++) s->hard[h] = ((int32_t*)hb.buf)[h];
   PyBuffer_Release(&hb);
+  Py_buffer pb;
+  if (get_buf(opair, &pb, 4, -1, "pairs", 0)) return -1;
+  s->npair = (int)(pb.len / 8);
+  s->pair = malloc(sizeof(int) * 2 * (s->npair + 1));
+  s->pmargin = malloc(sizeof(double) * (s->npair + 1));
+  const mjModel* m = s->m;
+  for (int p = 0; p < s->npair; p++) {
+    int g1 = ((int32_t*)pb.buf)[2 * p], g2 = ((int32_t*)pb.buf)[2 * p + 1];
+    if (g1 < 0 || g2 < 0 || g1 >= m->ngeom || g2 >= m->ngeom ||
+        m->geom_type[g1] > m->geom_type[g2] ||
+        !mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]]) {
+      PyBuffer_Release(&pb);
+      PyErr_Format(PyExc_ValueError, "pairs: (%d, %d) is no geom pair in type order", g1, g2);
+      return -1;
+    }
+    s->pair[2 * p] = g1, s->pair[2 * p + 1] = g2;
+    double margin = mjENABLED(mjENBL_OVERRIDE) ? m->opt.o_margin
+                                               : m->geom_margin[g1] + m->geom_margin[g2];
+    s->pmargin[p] = margin + m->geom_gap[g1] + m->geom_gap[g2];
+  }
+  PyBuffer_Release(&pb);
   int nt = s->nterm ? s->nterm : 1;
   s->term_kind = malloc(sizeof(int) * nt);
   s->term_id = malloc(sizeof(int) * nt);

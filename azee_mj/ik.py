@@ -236,7 +236,8 @@ class Solver:
             if jid >= 0:
                 self.dof_weight[m.jnt_dofadr[jid]] = w
         self._joint_info: dict[str, tuple[int, int, bool]] = {}
-        self._masks: dict[bytes, tuple[np.ndarray, np.ndarray] | None] = {}
+        self._all_pairs = _collision_pairs(m)
+        self._pairs: dict[bytes, np.ndarray] = {}
         self.set_naturalness(naturalness)
 
     def set_naturalness(self, naturalness: Naturalness | None) -> None:
@@ -319,6 +320,24 @@ class Solver:
                         b = m.body_parentid[b]
         return np.array(sorted(dofs), dtype=int)
 
+    def collision_pairs(self, free: np.ndarray) -> np.ndarray:
+        """(n, 2) geom pairs whose distance the dofs ``free`` can change: those
+        ``mj_collision`` tests, without the pairs joined by no free dof (within a hand whose
+        shape is fixed, within the unmoved rest of the body); in ``mj_collision``'s order,
+        each pair's geoms in the type order of its narrowphase function."""
+        key = free.tobytes()
+        if key not in self._pairs:
+            m = self.model
+            moving = np.zeros(m.nbody, bool)
+            moving[m.dof_bodyid[free]] = True
+            group = np.arange(m.nbody)  # rigid group: the body's moving ancestor, or itself
+            for b in range(1, m.nbody):  # parents come before children
+                if not moving[b]:
+                    group[b] = group[m.body_parentid[b]]
+            bodies = m.geom_bodyid[self._all_pairs]
+            self._pairs[key] = self._all_pairs[group[bodies[:, 0]] != group[bodies[:, 1]]]
+        return self._pairs[key]
+
     def joined_bodies(self, problem: IKProblem) -> set[tuple[int, int]]:
         """Body pairs a site-to-site placement brings together (allowed to touch)."""
         pairs = set()
@@ -337,13 +356,6 @@ class Solver:
     def plan(self, problem: IKProblem) -> Plan:
         """The problem compiled for this solver (rows, buffers, free dofs)."""
         return Plan(self, problem)
-
-    def _evaluate(self, q, plan: Plan) -> Rows:
-        """The rows of ``plan`` on posture ``q`` (computed by the compiled core)."""
-        r, J, norms, depth = plan.core.evaluate(np.ascontiguousarray(q, float), plan.collide)
-        r = np.frombuffer(r)
-        return Rows(r, np.frombuffer(J).reshape(r.size, plan.free.size),
-                    np.frombuffer(norms).tolist(), depth)  # fmt: skip
 
     # -- solve --------------------------------------------------------------------------
     def solve(self, problem: IKProblem, q0: np.ndarray | None = None) -> IKResult:
@@ -378,36 +390,32 @@ class Solver:
         # meets everything; the best attempt by one cost is kept.
         best = None
         iters = attempt = 0
-        masks = plan.mask_rigid_pairs()
-        try:
-            for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
-                run = self._attempt(start, plan, history)
-                iters += run.iterations
-                if best is None or run.rank < best.rank:
-                    best = run
-            restarts = self.restarts if problem.restarts is None else problem.restarts
-            for start, seeded in self._restart_points(problem, q_start, free, restarts):
-                if not best.rank[0]:
-                    break
-                attempt += 1
-                start = np.clip(start, plan.lower, plan.upper)
-                # the first restart and the seeder's starts begin with collisions off
-                run = self._attempt(start, plan, history, transparent_first=attempt == 1 or seeded)
-                iters += run.iterations
-                # A seeder's start counts only if it meets everything: an infeasible problem
-                # keeps its best posture from the generic starts, not a far branch.
-                if run.rank < best.rank and not (seeded and run.rank[0]):
-                    best = run
-            if best.rank[0] and restarts >= 2:
-                # Nothing met everything: converge the best attempt fully (no early stop),
-                # so that an infeasible problem gets its least residual (a per-frame solve,
-                # with fewer restarts, keeps its step).
-                run = self._settle(self._lm(best.q, plan, history, early=False), plan, history)
-                iters += run.iterations
-                if run.rank < best.rank:
-                    best = run
-        finally:
-            masks()
+        for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
+            run = self._attempt(start, plan, history)
+            iters += run.iterations
+            if best is None or run.rank < best.rank:
+                best = run
+        restarts = self.restarts if problem.restarts is None else problem.restarts
+        for start, seeded in self._restart_points(problem, q_start, free, restarts):
+            if not best.rank[0]:
+                break
+            attempt += 1
+            start = np.clip(start, plan.lower, plan.upper)
+            # the first restart and the seeder's starts begin with collisions off
+            run = self._attempt(start, plan, history, transparent_first=attempt == 1 or seeded)
+            iters += run.iterations
+            # A seeder's start counts only if it meets everything: an infeasible problem
+            # keeps its best posture from the generic starts, not a far branch.
+            if run.rank < best.rank and not (seeded and run.rank[0]):
+                best = run
+        if best.rank[0] and restarts >= 2:
+            # Nothing met everything: converge the best attempt fully (no early stop),
+            # so that an infeasible problem gets its least residual (a per-frame solve,
+            # with fewer restarts, keeps its step).
+            run = self._settle(self._lm(best.q, plan, history, early=False), plan, history)
+            iters += run.iterations
+            if run.rank < best.rank:
+                best = run
         q = best.q
         residuals, depth = plan.report(q)
         hard = [r for r, c in zip(residuals, cons) if not c.soft]
@@ -566,6 +574,32 @@ class Solver:
         return k
 
 
+def _collision_pairs(m: mujoco.MjModel) -> np.ndarray:
+    """(n, 2) the geom pairs ``mj_collision`` tests on model ``m`` (contype/conaffinity,
+    not welded together, not parent and child unless the parent is the world, not excluded),
+    in its order (by body pair, then geom pair), each pair's geoms in the type order of its
+    ``mjCOLLISIONFUNC``."""
+    geoms = np.flatnonzero((m.geom_contype | m.geom_conaffinity) != 0)
+    i, j = np.triu_indices(geoms.size, 1)
+    g1, g2 = geoms[i], geoms[j]
+    ok = ((m.geom_contype[g1] & m.geom_conaffinity[g2]) |
+          (m.geom_contype[g2] & m.geom_conaffinity[g1])) != 0  # fmt: skip
+    w1, w2 = m.body_weldid[m.geom_bodyid[g1]], m.body_weldid[m.geom_bodyid[g2]]
+    ok &= w1 != w2
+    if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT:
+        p1, p2 = m.body_weldid[m.body_parentid[w1]], m.body_weldid[m.body_parentid[w2]]
+        ok &= ~((w1 != 0) & (w2 != 0) & ((w1 == p2) | (w2 == p1)))
+    b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
+    lo, hi = np.minimum(b1, b2), np.maximum(b1, b2)
+    ok &= ~np.isin((lo << 16) + hi, m.exclude_signature)
+    planar = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
+    ok &= ~(np.isin(m.geom_type[g1], planar) & np.isin(m.geom_type[g2], planar))
+    swap = m.geom_type[g1] > m.geom_type[g2]
+    a1, a2 = np.where(swap, g2, g1)[ok], np.where(swap, g1, g2)[ok]
+    order = np.lexsort((a2, a1, hi[ok], lo[ok]))
+    return np.stack([a1[order], a2[order]], axis=1)
+
+
 def add_target_pool(spec: mujoco.MjSpec, n: int) -> None:
     """Add ``n`` mocap bodies ``ik_target_k`` with a site each, and ``n`` inactive site-based
     ``connect`` equalities ``ik_connect_k`` that :meth:`Solver.configure_equalities` aims."""
@@ -578,17 +612,6 @@ def add_target_pool(spec: mujoco.MjSpec, n: int) -> None:
             name=f"ik_connect_{k}", type=mujoco.mjtEq.mjEQ_CONNECT,
             objtype=mujoco.mjtObj.mjOBJ_SITE, name1=anchor, name2=f"ik_target_{k}", active=False,
         )  # fmt: skip
-
-
-@dataclasses.dataclass(frozen=True)
-class Rows:
-    """The rows of a plan on one posture: residual (k,), Jacobian (k, free), each hard
-    constraint's row norm, and the deepest penetration [m] outside allowed pairs."""
-
-    r: np.ndarray
-    J: np.ndarray
-    norms: list[float]
-    depth: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -741,6 +764,7 @@ class Plan:
             np.array(term_i, np.int32), np.array(term_d, float), self.inv,
             self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
             self._generic_rows if self.generic else None, np.array(hard, np.int32),
+            solver.collision_pairs(self.free).astype(np.int32),
         )  # fmt: skip
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         self.pinned = np.isin(self.free, sorted(pinned))
@@ -764,54 +788,6 @@ class Plan:
             r, J = c.rows(k)
             self.pref_r[row : row + r.size], self.pref_J[row : row + r.size] = r, J
             row += r.size
-
-    def mask_rigid_pairs(self) -> Callable[[], None]:
-        """Keep ``mj_collision`` off the geom pairs that cannot move relative to each other
-        (no free dof between their bodies: within a hand whose shape is fixed, within the
-        unmoved rest of the body); returns the function that restores the model.
-
-        Bodies joined without a free dof form one rigid group; each group gets its own
-        ``contype`` bit and every other bit as ``conaffinity``, so geoms collide only with
-        other groups. Left as it is when the model uses other collision masks or there are
-        more groups than bits."""
-        m = self.m
-        contype, conaff = m.geom_contype.copy(), m.geom_conaffinity.copy()
-        key = self.free.tobytes() + contype.tobytes() + conaff.tobytes()
-        if key not in self.s._masks:
-            self.s._masks[key] = self._rigid_masks(contype, conaff)
-        masks = self.s._masks[key]
-        if masks is None:
-            return lambda: None
-        m.geom_contype[:], m.geom_conaffinity[:] = masks
-
-        def restore():
-            m.geom_contype[:] = contype
-            m.geom_conaffinity[:] = conaff
-
-        return restore
-
-    def _rigid_masks(self, contype, conaff):
-        """(contype, conaffinity) with one bit per rigid group, or None (see
-        :meth:`mask_rigid_pairs`)."""
-        m = self.m
-        active = (contype | conaff) != 0
-        if not active.any() or not (np.all(contype[active] == 1) and
-                                    np.all(conaff[active] == 1)):  # fmt: skip
-            return None
-        moving = np.zeros(m.nbody, bool)
-        moving[m.dof_bodyid[self.free]] = True
-        group = np.arange(m.nbody)
-        for b in range(1, m.nbody):  # parents come before children
-            if not moving[b]:
-                group[b] = group[m.body_parentid[b]]
-        used, gid = np.unique(group[m.geom_bodyid[active]], return_inverse=True)
-        if used.size > 31:
-            return None
-        bit = (1 << gid).astype(np.int32)
-        ct, ca = contype.copy(), conaff.copy()
-        ct[active] = bit
-        ca[active] = np.int32(0x7FFFFFFF) & ~bit
-        return ct, ca
 
     def _compile(self, c, term_i: list[int], term_d: list[float]) -> list:
         """The core's blocks [(kind, rows, 6 ints [perp, id, id2, dof, first term, terms],

@@ -223,21 +223,46 @@ def _penetrating_posture(solver, depth=0.01):
     return res.qpos
 
 
+def _rigid(m, free):
+    """rigid(a, b): no dof of ``free`` on the tree path between bodies a and b."""
+    moving = set(m.dof_bodyid[free])
+
+    def chain(x):
+        out = []
+        while x > 0:
+            out.append(x)
+            x = m.body_parentid[x]
+        return set(out)
+
+    return lambda a, b: not (chain(a) ^ chain(b)) & moving
+
+
+def _contacts(solver, q):
+    """MuJoCo's own contacts of posture q: (dist, geom pairs) in mj_collision's order."""
+    m, d = solver.model, solver.data
+    _fk(solver, q)
+    mujoco.mj_collision(m, d)
+    return d.contact.dist[: d.ncon].copy(), d.contact.geom[: d.ncon].copy()
+
+
 def test_collision_rows_match_finite_differences(solver):
     """Each collision row is d(dist)/dq / COLLISION_TOL of its contact over the free dofs,
     checked where MuJoCo's distance is smooth (capsule and sphere pairs; ellipsoids go
     through GJK/EPA and boxes have edges)."""
     q = _penetrating_posture(solver, 0.002)
-    m, d = solver.model, solver.data
+    m = solver.model
     plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
     r0, J0, _, depth = plan.core.evaluate(q, True)
     r0 = np.frombuffer(r0)
     J0 = np.frombuffer(J0).reshape(r0.size, plan.free.size)
-    hits = np.flatnonzero(d.contact.dist[: d.ncon] < 0)  # no pair may touch: floor 0
-    assert hits.size == r0.size and depth > 0
-    np.testing.assert_allclose(r0, d.contact.dist[hits] / cn.COLLISION_TOL)
+    dist, geoms = _contacts(solver, q)
+    rigid = _rigid(m, plan.free)
+    hits = [k for k in range(dist.size)  # no pair may touch: floor 0
+            if dist[k] < 0 and not rigid(*m.geom_bodyid[geoms[k]])]  # fmt: skip
+    assert len(hits) == r0.size and depth > 0
+    np.testing.assert_allclose(r0, dist[hits] / cn.COLLISION_TOL)
     smooth = (int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE))
-    rows = [i for i, c in enumerate(hits) if all(m.geom_type[g] in smooth for g in d.contact.geom[c])]
+    rows = [i for i, c in enumerate(hits) if all(m.geom_type[g] in smooth for g in geoms[c])]
     assert len(rows) >= 2
     eps = 1e-7
     fd = np.zeros((len(rows), plan.free.size))
@@ -250,40 +275,25 @@ def test_collision_rows_match_finite_differences(solver):
     np.testing.assert_allclose(J0[rows], fd, atol=1e-3 * np.abs(J0[rows]).max())
 
 
-def test_rigid_pairs_are_left_out_of_collision_detection(solver):
-    """With a hand shape fixed, no contact is reported between bodies that no free dof
-    moves apart, and every other contact still is."""
+def test_collision_rows_are_mujocos_contacts_less_the_rigid_pairs(solver):
+    """The core collides the pairs a free dof can move apart, and finds there exactly
+    ``mj_collision``'s contacts in its order: with a hand shape fixed, nothing between
+    bodies that no free dof moves, every other penetration row for row."""
     q = _penetrating_posture(solver)
-    m, d = solver.model, solver.data
+    m = solver.model
     plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
-
-    def pairs():
-        _fk(solver, q)
-        mujoco.mj_collision(m, d)
-        return {tuple(sorted(m.geom_bodyid[g])) for g in d.contact.geom[: d.ncon]}
-
-    everything = pairs()
-    restore = plan.mask_rigid_pairs()
-    try:
-        masked = pairs()
-    finally:
-        restore()
-    moving = set(m.dof_bodyid[plan.free])
-
-    def rigid(a, b):  # no free dof on the tree path between bodies a and b
-        def chain(x):
-            out = []
-            while x > 0:
-                out.append(x)
-                x = m.body_parentid[x]
-            return out
-
-        ca, cb = chain(a), chain(b)
-        return not (set(ca) ^ set(cb)) & moving
-
-    assert masked == {p for p in everything if not rigid(*p)}
-    assert any(rigid(*p) for p in everything)
-    assert pairs() == everything  # restored
+    rigid = _rigid(m, plan.free)
+    pairs = solver.collision_pairs(plan.free)
+    assert not any(rigid(*m.geom_bodyid[p]) for p in pairs)
+    dist, geoms = _contacts(solver, q)
+    assert any(rigid(*m.geom_bodyid[g]) for g in geoms)
+    moved = [k for k in range(dist.size) if not rigid(*m.geom_bodyid[geoms[k]])]
+    listed = {tuple(p) for p in pairs.tolist()}
+    assert all(tuple(geoms[k]) in listed for k in moved)
+    r = np.frombuffer(plan.core.evaluate(q, True)[0])
+    deep = [k for k in moved if dist[k] < 0]
+    assert len(deep) >= 2
+    np.testing.assert_array_equal(r, dist[deep] / cn.COLLISION_TOL)
 
 
 def test_compiled_natural_rows_equal_the_objective(solver):

@@ -396,9 +396,10 @@ class Solver:
             if best is None or run.rank < best.rank:
                 best = run
         restarts = self.restarts if problem.restarts is None else problem.restarts
-        for start, seeded in self._restart_points(problem, q_start, free, restarts):
-            if not best.rank[0]:
-                break
+        starts = self._restart_points(problem, q_start, free, restarts)
+        # the next start is drawn only when needed: the seeder's starts cost a search each
+        while best.rank[0] and (nxt := next(starts, None)) is not None:
+            start, seeded = nxt
             attempt += 1
             start = np.clip(start, plan.lower, plan.upper)
             # the first restart and the seeder's starts begin with collisions off

@@ -65,7 +65,6 @@ typedef struct {
   double* floor;  /* (nbody * nbody,) */
   int npair;
   int* pair;      /* (npair, 2) geoms, each pair in mjCOLLISIONFUNC's type order */
-  double* pmargin;  /* (npair,) margin plus gap of each pair */
   double *tmp, *tmp2, *j1, *j2; /* (3, nv) */
   /* evaluation buffers: two sets for the LM (current and candidate) */
   int cap;
@@ -254,19 +253,19 @@ static int evaluate(Core* s, const double* q, int collide, int b) {
   int rows = s->nrows;
   double depth = 0.0;
   if (collide) {
-    /* The pair list's narrowphase, as mj_collision runs it (same functions, bounding-sphere
-       filter and order) but only on the pairs that can move relative to each other. */
+    /* MuJoCo's narrowphase on the pair list, with mj_collision's bounding-sphere test and
+       in its order, but only on the pairs that can move relative to each other, and without
+       the margin: a row is made only for a contact deeper than its floor (<= 0). */
     mjPreContact pc[mjMAXCONPAIR];
     double worst = -INFINITY;
     for (int p = 0; p < s->npair; p++) {
       int g1 = s->pair[2 * p], g2 = s->pair[2 * p + 1];
-      double margin = s->pmargin[p];
       const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
       double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
-      double bound = m->geom_rbound[g1] + m->geom_rbound[g2] + margin;
+      double bound = m->geom_rbound[g1] + m->geom_rbound[g2];
       if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 && dx * dx + dy * dy + dz * dz > bound * bound)
         continue;
-      int n = mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, margin);
+      int n = mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, 0.0);
       int b1 = m->geom_bodyid[g1], b2 = m->geom_bodyid[g2];
       double fl = s->floor[b1 * s->nbody + b2];
       for (int c = 0; c < n; c++) {
@@ -372,7 +371,6 @@ static void Core_dealloc(Core* s) {
   free(s->free);
   free(s->floor);
   free(s->pair);
-  free(s->pmargin);
   free(s->hard);
   free(s->edof);
   free(s->escale);
@@ -450,7 +448,6 @@ static int Core_init(Core* s, PyObject* args, PyObject* kw) {
   if (get_buf(opair, &pb, 4, -1, "pairs", 0)) return -1;
   s->npair = (int)(pb.len / 8);
   s->pair = malloc(sizeof(int) * 2 * (s->npair + 1));
-  s->pmargin = malloc(sizeof(double) * (s->npair + 1));
   const mjModel* m = s->m;
   for (int p = 0; p < s->npair; p++) {
     int g1 = ((int32_t*)pb.buf)[2 * p], g2 = ((int32_t*)pb.buf)[2 * p + 1];
@@ -462,9 +459,6 @@ static int Core_init(Core* s, PyObject* args, PyObject* kw) {
       return -1;
     }
     s->pair[2 * p] = g1, s->pair[2 * p + 1] = g2;
-    double margin = mjENABLED(mjENBL_OVERRIDE) ? m->opt.o_margin
-                                               : m->geom_margin[g1] + m->geom_margin[g2];
-    s->pmargin[p] = margin + m->geom_gap[g1] + m->geom_gap[g2];
   }
   PyBuffer_Release(&pb);
   int nt = s->nterm ? s->nterm : 1;

@@ -184,7 +184,8 @@ class Solver:
       max_iter: LM iterations per attempt.
       restarts: further generic attempts from other starts when an attempt does not
         converge (the ``seeder``'s starts come on top, from 2 up).
-      margin: collision margin [m] for detecting near contacts.
+      margin: collision margin [m] for detecting near contacts in the reports and the
+        diagnosis (the solve itself needs the penetrations only).
       on_solve: called with each problem and its result, in solving order (an observer).
       naturalness: what makes a posture natural (:mod:`azee_mj.natural`); among the
         postures that meet the constraints without penetration the solver takes the most
@@ -246,6 +247,14 @@ class Solver:
         self.effort_dofs = (np.flatnonzero(naturalness.strength > 0) if naturalness is not None
                             else np.zeros(0, int))  # fmt: skip
         self.effort = Effort(self.model, self.effort_dofs)
+        edof = self.effort.dofs
+        #: The compiled core's naturalness arguments (see ``Plan``): effort dofs, their
+        #: scales, comfort weights, neutral posture and the dofs' ancestry.
+        self.natural_terms = None if naturalness is None else (
+            edof.astype(np.int32), np.sqrt(naturalness.effort_weight) / naturalness.strength[edof],
+            np.ascontiguousarray(naturalness.comfort, float),
+            np.ascontiguousarray(naturalness.neutral, float), self.effort.anc_u8,
+        )  # fmt: skip
 
     # -- names ------------------------------------------------------------------------
     def site_id(self, name: str) -> int:
@@ -335,7 +344,8 @@ class Solver:
                 if not moving[b]:
                     group[b] = group[m.body_parentid[b]]
             bodies = m.geom_bodyid[self._all_pairs]
-            self._pairs[key] = self._all_pairs[group[bodies[:, 0]] != group[bodies[:, 1]]]
+            keep = group[bodies[:, 0]] != group[bodies[:, 1]]
+            self._pairs[key] = np.ascontiguousarray(self._all_pairs[keep], np.int32)
         return self._pairs[key]
 
     def joined_bodies(self, problem: IKProblem) -> set[tuple[int, int]]:
@@ -765,22 +775,17 @@ class Plan:
             np.array(term_i, np.int32), np.array(term_d, float), self.inv,
             self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
             self._generic_rows if self.generic else None, np.array(hard, np.int32),
-            solver.collision_pairs(self.free).astype(np.int32),
+            solver.collision_pairs(self.free),
         )  # fmt: skip
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
-        self.pinned = np.isin(self.free, sorted(pinned))
+        self.pinned = np.array([f in pinned for f in self.free.tolist()], bool)
         nat = solver.naturalness
         if nat is not None:
             prefs = problem.preferences
             k = sum(c.rows(solver.kinematics())[0].size for c in prefs) if prefs else 0
             self.pref_r, self.pref_J = np.zeros(k), np.zeros((k, m.nv))
-            edof = self.effort.dofs
-            self.core.set_natural(
-                edof.astype(np.int32), np.sqrt(nat.effort_weight) / nat.strength[edof],
-                np.ascontiguousarray(nat.comfort, float), np.ascontiguousarray(nat.neutral, float),
-                self.effort.anc_u8, self.pref_r, self.pref_J,
-                self._preference_rows if k else None,
-            )  # fmt: skip
+            self.core.set_natural(*solver.natural_terms, self.pref_r, self.pref_J,
+                                  self._preference_rows if k else None)  # fmt: skip
 
     def _preference_rows(self) -> None:
         """The core's callback: the preferences' rows on the posture in ``solver.data``."""

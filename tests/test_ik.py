@@ -237,11 +237,17 @@ def _rigid(m, free):
     return lambda a, b: not (chain(a) ^ chain(b)) & moving
 
 
-def _contacts(solver, q):
-    """MuJoCo's own contacts of posture q: (dist, geom pairs) in mj_collision's order."""
+def _contacts(solver, q, near=False):
+    """MuJoCo's own contacts of posture q: (dist, geom pairs) in mj_collision's order;
+    without the margin (the core's rows are for penetrations only) unless ``near``."""
     m, d = solver.model, solver.data
-    _fk(solver, q)
-    mujoco.mj_collision(m, d)
+    margin = m.geom_margin.copy()
+    m.geom_margin[:] = margin if near else 0.0
+    try:
+        _fk(solver, q)
+        mujoco.mj_collision(m, d)
+    finally:
+        m.geom_margin[:] = margin
     return d.contact.dist[: d.ncon].copy(), d.contact.geom[: d.ncon].copy()
 
 
@@ -277,7 +283,7 @@ def test_collision_rows_match_finite_differences(solver):
 
 def test_collision_rows_are_mujocos_contacts_less_the_rigid_pairs(solver):
     """The core collides the pairs a free dof can move apart, and finds there exactly
-    ``mj_collision``'s contacts in its order: with a hand shape fixed, nothing between
+    ``mj_collision``'s penetrations in its order: with a hand shape fixed, nothing between
     bodies that no free dof moves, every other penetration row for row."""
     q = _penetrating_posture(solver)
     m = solver.model
@@ -285,8 +291,8 @@ def test_collision_rows_are_mujocos_contacts_less_the_rigid_pairs(solver):
     rigid = _rigid(m, plan.free)
     pairs = solver.collision_pairs(plan.free)
     assert not any(rigid(*m.geom_bodyid[p]) for p in pairs)
+    assert any(rigid(*m.geom_bodyid[g]) for g in _contacts(solver, q, near=True)[1])
     dist, geoms = _contacts(solver, q)
-    assert any(rigid(*m.geom_bodyid[g]) for g in geoms)
     moved = [k for k in range(dist.size) if not rigid(*m.geom_bodyid[geoms[k]])]
     listed = {tuple(p) for p in pairs.tolist()}
     assert all(tuple(geoms[k]) in listed for k in moved)

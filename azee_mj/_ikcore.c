@@ -223,6 +223,18 @@ static int raw_rows(Core* s) {
   return 0;
 }
 
+/* The penetrating contacts of geom pair (g1, g2) (in the type order of its function) on the
+   posture in data, as MuJoCo's narrowphase finds them after mj_collision's bounding-sphere
+   test, without the margin: their count, written to pc (mjMAXCONPAIR). */
+static int penetrations(const mjModel* m, mjData* d, int g1, int g2, mjPreContact* pc) {
+  const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
+  double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
+  double bound = m->geom_rbound[g1] + m->geom_rbound[g2];
+  if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 && dx * dx + dy * dy + dz * dz > bound * bound)
+    return 0;
+  return mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, 0.0);
+}
+
 /* Scaled rows over the free dofs of posture q into buffer set b; collision rows if collide.
    Returns 0, or -1 with a Python error set. */
 static int evaluate(Core* s, const double* q, int collide, int b) {
@@ -253,19 +265,14 @@ static int evaluate(Core* s, const double* q, int collide, int b) {
   int rows = s->nrows;
   double depth = 0.0;
   if (collide) {
-    /* MuJoCo's narrowphase on the pair list, with mj_collision's bounding-sphere test and
-       in its order, but only on the pairs that can move relative to each other, and without
-       the margin: a row is made only for a contact deeper than its floor (<= 0). */
+    /* MuJoCo's narrowphase on the pair list, in mj_collision's order, only on the pairs
+       that can move relative to each other and without the margin: a row is made only for
+       a contact deeper than its floor (<= 0). */
     mjPreContact pc[mjMAXCONPAIR];
     double worst = -INFINITY;
     for (int p = 0; p < s->npair; p++) {
       int g1 = s->pair[2 * p], g2 = s->pair[2 * p + 1];
-      const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
-      double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
-      double bound = m->geom_rbound[g1] + m->geom_rbound[g2];
-      if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 && dx * dx + dy * dy + dz * dz > bound * bound)
-        continue;
-      int n = mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, 0.0);
+      int n = penetrations(m, d, g1, g2, pc);
       int b1 = m->geom_bodyid[g1], b2 = m->geom_bodyid[g2];
       double fl = s->floor[b1 * s->nbody + b2];
       for (int c = 0; c < n; c++) {
@@ -523,6 +530,30 @@ static PyObject* Core_evaluate(Core* s, PyObject* args) {
   int k = s->rows[0];
   return Py_BuildValue("(NNNd)", as_bytes(s->r[0], k), as_bytes(s->J[0], (Py_ssize_t)k * s->nfree),
                        as_bytes(s->norms[0], s->nhard), s->depth[0]);
+}
+
+/* deepest(pairs) -> depth [m]: the deepest penetration (>= 0) on the posture in data among
+   geom pairs (npair*2 int32, each in the type order of its function) outside the body pairs
+   this problem lets touch (those with a floor). */
+static PyObject* Core_deepest(Core* s, PyObject* args) {
+  PyObject* op;
+  if (!PyArg_ParseTuple(args, "O", &op)) return NULL;
+  Py_buffer pb;
+  if (get_buf(op, &pb, 4, -1, "pairs", 0)) return NULL;
+  const mjModel* m = s->m;
+  const int32_t* P = pb.buf;
+  int n = (int)(pb.len / 8);
+  mjPreContact pc[mjMAXCONPAIR];
+  double depth = 0.0;
+  for (int p = 0; p < n; p++) {
+    int g1 = P[2 * p], g2 = P[2 * p + 1];
+    if (s->floor[m->geom_bodyid[g1] * s->nbody + m->geom_bodyid[g2]] != 0.0) continue;
+    int k = penetrations(m, s->d, g1, g2, pc);
+    for (int c = 0; c < k; c++)
+      if (-pc[c].dist > depth) depth = -pc[c].dist;
+  }
+  PyBuffer_Release(&pb);
+  return PyFloat_FromDouble(depth);
 }
 
 static double cost_of(Core* s, int b, const double* q, double posture, const double* w,
@@ -1025,6 +1056,8 @@ static PyMethodDef Core_methods[] = {
      " -> (q, nat, it, hist)."},
     {"rows", (PyCFunction)Core_rows, METH_NOARGS,
      "Write the raw rows into the shared r and J buffers (posture already in data)."},
+    {"deepest", (PyCFunction)Core_deepest, METH_VARARGS,
+     "deepest(pairs) -> the deepest penetration [m] among pairs outside the allowed ones."},
     {"evaluate", (PyCFunction)Core_evaluate, METH_VARARGS,
      "evaluate(q, collide) -> (r, J, norms, depth): scaled rows over the free dofs."},
     {"lm", (PyCFunction)Core_lm, METH_VARARGS,

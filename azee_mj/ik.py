@@ -43,7 +43,6 @@ from azee_mj.constraints import (
     Orient,
     Place,
     Rel,
-    penetration_depth,
 )
 from azee_mj.kinematics import (
     BodyAxis,
@@ -345,7 +344,7 @@ class Solver:
                     group[b] = group[m.body_parentid[b]]
             bodies = m.geom_bodyid[self._all_pairs]
             keep = group[bodies[:, 0]] != group[bodies[:, 1]]
-            self._pairs[key] = np.ascontiguousarray(self._all_pairs[keep], np.int32)
+            self._pairs[key] = np.ascontiguousarray(self._all_pairs[keep])
         return self._pairs[key]
 
     def joined_bodies(self, problem: IKProblem) -> set[tuple[int, int]]:
@@ -608,7 +607,7 @@ def _collision_pairs(m: mujoco.MjModel) -> np.ndarray:
     swap = m.geom_type[g1] > m.geom_type[g2]
     a1, a2 = np.where(swap, g2, g1)[ok], np.where(swap, g1, g2)[ok]
     order = np.lexsort((a2, a1, hi[ok], lo[ok]))
-    return np.stack([a1[order], a2[order]], axis=1)
+    return np.ascontiguousarray(np.stack([a1[order], a2[order]], axis=1), np.int32)
 
 
 def add_target_pool(spec: mujoco.MjSpec, n: int) -> None:
@@ -897,4 +896,4 @@ class Plan:
             if isinstance(c, Place) or isinstance(c, JointTarget) and self.s.joint_info(c.joint)[2]:
                 unit = "m"
             out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
-        return tuple(out), penetration_depth(m, d, self.joined)
+        return tuple(out), self.core.deepest(self.s._all_pairs)

@@ -65,6 +65,13 @@ typedef struct {
   double* floor;  /* (nbody * nbody,) */
   int npair;
   int* pair;      /* (npair, 2) geoms, each pair in mjCOLLISIONFUNC's type order */
+  /* Geoms grouped in clusters (a hand, the head; a geom alone otherwise) and the pairs in
+     runs of one cluster pair: a run whose clusters' bounding spheres are apart is skipped
+     whole (none of its geom spheres can meet). */
+  int nclu, nrun;
+  int* gclu;      /* (ngeom,) cluster of each geom, -1 if it collides with nothing */
+  int* run;       /* (nrun + 1,) first pair of each run */
+  double *ccen, *crad; /* (nclu, 3), (nclu,) cluster spheres on the posture in data */
   double *tmp, *tmp2, *j1, *j2; /* (3, nv) */
   /* evaluation buffers: two sets for the LM (current and candidate) */
   int cap;
@@ -226,6 +233,11 @@ static int raw_rows(Core* s) {
 /* The penetrating contacts of geom pair (g1, g2) (in the type order of its function) on the
    posture in data, as MuJoCo's narrowphase finds them after mj_collision's bounding-sphere
    test, without the margin: their count, written to pc (mjMAXCONPAIR). */
+static double dist2(const double* a, const double* b) {
+  double x = a[0] - b[0], y = a[1] - b[1], z = a[2] - b[2];
+  return x * x + y * y + z * z;
+}
+
 static int penetrations(const mjModel* m, mjData* d, int g1, int g2, mjPreContact* pc) {
   const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
   double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
@@ -233,6 +245,55 @@ static int penetrations(const mjModel* m, mjData* d, int g1, int g2, mjPreContac
   if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 && dx * dx + dy * dy + dz * dz > bound * bound)
     return 0;
   return mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, 0.0);
+}
+
+/* The clusters' bounding spheres on the posture in data: each centred on its first geom and
+   holding its geoms' bounding spheres (infinite with a plane). */
+static void cluster_spheres(Core* s) {
+  const mjModel* m = s->m;
+  const mjData* d = s->d;
+  for (int c = 0; c < s->nclu; c++) s->crad[c] = -1.0;
+  for (int g = 0; g < m->ngeom; g++) {
+    int c = s->gclu[g];
+    if (c < 0) continue;
+    if (s->crad[c] < 0) s->crad[c] = 0.0, mju_copy3(s->ccen + 3 * c, d->geom_xpos + 3 * g);
+    double r = m->geom_rbound[g] > 0 ? sqrt(dist2(d->geom_xpos + 3 * g, s->ccen + 3 * c)) + m->geom_rbound[g]
+                                     : INFINITY;
+    if (r > s->crad[c]) s->crad[c] = r;
+  }
+}
+
+/* Appends to buffer set b, from row *rows on, one row per contact of pair p deeper than its
+   body pair's floor: n . (J2 - J1) over the free dofs at the contact point; *worst: the
+   deepest below a floor. Returns 0, or -1 out of memory. */
+static int pair_rows(Core* s, int p, int b, int* rows, double* worst) {
+  const mjModel* m = s->m;
+  mjData* d = s->d;
+  int nv = s->nv, nf = s->nfree;
+  int g1 = s->pair[2 * p], g2 = s->pair[2 * p + 1];
+  mjPreContact pc[mjMAXCONPAIR];
+  int n = penetrations(m, d, g1, g2, pc);
+  int b1 = m->geom_bodyid[g1], b2 = m->geom_bodyid[g2];
+  double fl = s->floor[b1 * s->nbody + b2];
+  for (int c = 0; c < n; c++) {
+    const mjPreContact* con = pc + c;
+    if (!(con->dist < fl)) continue;
+    if (grow(s, *rows + 1)) return -1;
+    if (fl - con->dist > *worst) *worst = fl - con->dist;
+    mj_jac(m, d, s->j1, NULL, con->pos, b1);
+    mj_jac(m, d, s->j2, NULL, con->pos, b2);
+    double nrm[3] = {con->normal[0], con->normal[1], con->normal[2]};
+    mju_normalize3(nrm); /* as mj_collision's contact frame */
+    double* row = s->J[b] + (size_t)*rows * nf;
+    for (int j = 0; j < nf; j++) {
+      int f = s->free[j];
+      double x = 0;
+      for (int i = 0; i < 3; i++) x += nrm[i] * (s->j2[i * nv + f] - s->j1[i * nv + f]);
+      row[j] = x / COLLISION_TOL;
+    }
+    s->r[b][(*rows)++] = (con->dist - fl) / COLLISION_TOL;
+  }
+  return 0;
 }
 
 /* Scaled rows over the free dofs of posture q into buffer set b; collision rows if collide.
@@ -268,33 +329,14 @@ static int evaluate(Core* s, const double* q, int collide, int b) {
     /* MuJoCo's narrowphase on the pair list, in mj_collision's order, only on the pairs
        that can move relative to each other and without the margin: a row is made only for
        a contact deeper than its floor (<= 0). */
-    mjPreContact pc[mjMAXCONPAIR];
     double worst = -INFINITY;
-    for (int p = 0; p < s->npair; p++) {
-      int g1 = s->pair[2 * p], g2 = s->pair[2 * p + 1];
-      int n = penetrations(m, d, g1, g2, pc);
-      int b1 = m->geom_bodyid[g1], b2 = m->geom_bodyid[g2];
-      double fl = s->floor[b1 * s->nbody + b2];
-      for (int c = 0; c < n; c++) {
-        const mjPreContact* con = pc + c;
-        if (!(con->dist < fl)) continue;
-        if (grow(s, rows + 1)) return PyErr_NoMemory(), -1;
-        r = s->r[b];
-        J = s->J[b];
-        if (fl - con->dist > worst) worst = fl - con->dist;
-        mj_jac(m, d, s->j1, NULL, con->pos, b1);
-        mj_jac(m, d, s->j2, NULL, con->pos, b2);
-        double nrm[3] = {con->normal[0], con->normal[1], con->normal[2]};
-        mju_normalize3(nrm); /* as mj_collision's contact frame */
-        double* row = J + (size_t)rows * nf;
-        for (int j = 0; j < nf; j++) {
-          int f = s->free[j];
-          double x = 0;
-          for (int i = 0; i < 3; i++) x += nrm[i] * (s->j2[i * nv + f] - s->j1[i * nv + f]);
-          row[j] = x / COLLISION_TOL;
-        }
-        r[rows++] = (con->dist - fl) / COLLISION_TOL;
-      }
+    cluster_spheres(s);
+    for (int k = 0; k < s->nrun; k++) {
+      int c1 = s->gclu[s->pair[2 * s->run[k]]], c2 = s->gclu[s->pair[2 * s->run[k] + 1]];
+      double bound = s->crad[c1] + s->crad[c2];
+      if (dist2(s->ccen + 3 * c1, s->ccen + 3 * c2) > bound * bound) continue;
+      for (int p = s->run[k]; p < s->run[k + 1]; p++)
+        if (pair_rows(s, p, b, &rows, &worst)) return PyErr_NoMemory(), -1;
     }
     if (worst > 0) depth = worst;
   }
@@ -378,6 +420,10 @@ static void Core_dealloc(Core* s) {
   free(s->free);
   free(s->floor);
   free(s->pair);
+  free(s->gclu);
+  free(s->run);
+  free(s->ccen);
+  free(s->crad);
   free(s->hard);
   free(s->edof);
   free(s->escale);
@@ -402,12 +448,14 @@ static void Core_dealloc(Core* s) {
 /* Core(model_addr, data_addr, owner, blocks_i (nblock*10 int32), blocks_d (nblock*11 f64),
         terms_i (nterm*2 int32), terms_d (nterm f64), inv (nrows f64), free (int32),
         floor (nbody*nbody f64), r (nrows f64, writable), J (nrows*nv f64, writable), callback,
-        hard (nhard*2 int32), pairs (npair*2 int32: the geom pairs to collide, in order)) */
+        hard (nhard*2 int32), pairs (npair*2 int32: the geom pairs to collide, in order),
+        clusters (ngeom int32: each geom's cluster, -1 for none)) */
 static int Core_init(Core* s, PyObject* args, PyObject* kw) {
   unsigned long long ma, da;
   PyObject *owner, *obi, *obd, *oti, *otd, *oinv, *ofree, *ofloor, *or_, *oJ, *cb, *ohard, *opair;
-  if (!PyArg_ParseTuple(args, "KKOOOOOOOOOOOOO", &ma, &da, &owner, &obi, &obd, &oti, &otd, &oinv,
-                        &ofree, &ofloor, &or_, &oJ, &cb, &ohard, &opair))
+  PyObject* oclu;
+  if (!PyArg_ParseTuple(args, "KKOOOOOOOOOOOOOO", &ma, &da, &owner, &obi, &obd, &oti, &otd, &oinv,
+                        &ofree, &ofloor, &or_, &oJ, &cb, &ohard, &opair, &oclu))
     return -1;
   s->m = (mjModel*)(uintptr_t)ma;
   s->d = (mjData*)(uintptr_t)da;
@@ -468,6 +516,29 @@ static int Core_init(Core* s, PyObject* args, PyObject* kw) {
     s->pair[2 * p] = g1, s->pair[2 * p + 1] = g2;
   }
   PyBuffer_Release(&pb);
+  Py_buffer cb_;
+  if (get_buf(oclu, &cb_, 4, m->ngeom, "clusters", 0)) return -1;
+  s->gclu = malloc(sizeof(int) * (m->ngeom + 1));
+  s->nclu = 0;
+  for (int g = 0; g < m->ngeom; g++) {
+    s->gclu[g] = ((int32_t*)cb_.buf)[g];
+    if (s->gclu[g] >= s->nclu) s->nclu = s->gclu[g] + 1;
+  }
+  PyBuffer_Release(&cb_);
+  s->run = malloc(sizeof(int) * (s->npair + 1));
+  s->nrun = 0;
+  for (int p = 0; p < s->npair; p++) {
+    int c1 = s->gclu[s->pair[2 * p]], c2 = s->gclu[s->pair[2 * p + 1]];
+    if (c1 < 0 || c2 < 0) {
+      PyErr_Format(PyExc_ValueError, "clusters: pair %d has a geom without a cluster", p);
+      return -1;
+    }
+    if (!p || c1 != s->gclu[s->pair[2 * p - 2]] || c2 != s->gclu[s->pair[2 * p - 1]])
+      s->run[s->nrun++] = p;
+  }
+  s->run[s->nrun] = s->npair;
+  s->ccen = malloc(sizeof(double) * 3 * (s->nclu + 1));
+  s->crad = malloc(sizeof(double) * (s->nclu + 1));
   int nt = s->nterm ? s->nterm : 1;
   s->term_kind = malloc(sizeof(int) * nt);
   s->term_id = malloc(sizeof(int) * nt);

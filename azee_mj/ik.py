@@ -237,6 +237,7 @@ class Solver:
                 self.dof_weight[m.jnt_dofadr[jid]] = w
         self._joint_info: dict[str, tuple[int, int, bool]] = {}
         self._all_pairs = _collision_pairs(m)
+        self._clusters = _geom_clusters(m, self.data, self.natural)
         self._pairs: dict[bytes, np.ndarray] = {}
         self.set_naturalness(naturalness)
 
@@ -610,6 +611,40 @@ def _collision_pairs(m: mujoco.MjModel) -> np.ndarray:
     return np.ascontiguousarray(np.stack([a1[order], a2[order]], axis=1), np.int32)
 
 
+def _geom_clusters(m: mujoco.MjModel, d: mujoco.MjData, q: np.ndarray,
+                   radius: float = 0.25) -> np.ndarray:
+    """(ngeom,) int32 the cluster of each colliding geom (-1 for the others): the highest
+    body whose subtree holds two colliding geoms or more, all within ``radius`` [m] of its
+    origin in posture ``q`` (a hand, the head), or the geom alone. The compiled core skips
+    the pairs of two clusters whose bounding spheres are apart."""
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    geoms = np.flatnonzero((m.geom_contype | m.geom_conaffinity) != 0)
+    members: dict[int, list[int]] = {}
+    for g in geoms:
+        b = m.geom_bodyid[g]
+        while b > 0:
+            members.setdefault(b, []).append(g)
+            b = m.body_parentid[b]
+
+    def small(b):
+        gs = members[b]
+        reach = np.linalg.norm(d.geom_xpos[gs] - d.xpos[b], axis=1) + m.geom_rbound[gs]
+        return len(gs) >= 2 and bool(np.all(m.geom_rbound[gs] > 0)) and reach.max() <= radius
+
+    out = np.full(m.ngeom, -1, np.int32)
+    roots: dict[int, int] = {}
+    for g in geoms:
+        b, root = m.geom_bodyid[g], None
+        while b > 0:
+            if small(b):
+                root = b
+            b = m.body_parentid[b]
+        key = -1 - g if root is None else root
+        out[g] = roots.setdefault(key, len(roots))
+    return out
+
+
 def add_target_pool(spec: mujoco.MjSpec, n: int) -> None:
     """Add ``n`` mocap bodies ``ik_target_k`` with a site each, and ``n`` inactive site-based
     ``connect`` equalities ``ik_connect_k`` that :meth:`Solver.configure_equalities` aims."""
@@ -774,7 +809,7 @@ class Plan:
             np.array(term_i, np.int32), np.array(term_d, float), self.inv,
             self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
             self._generic_rows if self.generic else None, np.array(hard, np.int32),
-            solver.collision_pairs(self.free),
+            solver.collision_pairs(self.free), solver._clusters,
         )  # fmt: skip
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         self.pinned = np.array([f in pinned for f in self.free.tolist()], bool)

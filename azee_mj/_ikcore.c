@@ -927,7 +927,7 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
   PyObject* history = PyList_New(0);
   PyObject* result = NULL;
   memcpy(q, bq.buf, sizeof(double) * nq);
-  int cur = 0, it = 0, stalls = 0, moves = 1;
+  int cur = 0, it = 0, converged = 0, moves = 1;
   double nat = 0.0, radius = step0;
   if (evaluate(s, q, collide, cur)) goto done;
   if (natural_rows(s, rn[cur], Jn[cur]) < 0) goto done;
@@ -1050,15 +1050,15 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
       cur = nxt;
       nat = nat_new;
       radius = fmin(2.0 * radius, max_step);
-      stalls = gain < 1e-3 ? stalls + 1 : 0;
+      converged = gain < 1e-3; /* a step that gains under 0.1 % */
     } else {
       radius *= 0.25;
-      stalls += radius < 1e-3 ? 1 : 0;
+      converged = radius < 1e-3; /* no step gains, down to a milliradian */
     }
     PyObject* h = PyFloat_FromDouble(dot(s->r[cur], s->r[cur], s->rows[cur]));
     PyList_Append(history, h);
     Py_DECREF(h);
-    if (stalls >= 2) break;
+    if (converged) break;
   }
   if (it > iters) it = iters;
   result = Py_BuildValue("(NdiN)", as_bytes(q, nq), nat, it, history);

@@ -174,7 +174,8 @@ class Solver:
     """Solves :class:`IKProblem` s on one model.
 
     The solver compiles its own copy of the model with ``n_targets`` mocap targets and as
-    many inactive ``connect`` equalities (see :meth:`configure_equalities`).
+    many inactive ``connect`` equalities (see :meth:`configure_equalities`), without the
+    geoms that only show (no contact, no mass).
 
     Args:
       model: an MJCF path or an ``MjSpec`` (copied).
@@ -213,6 +214,9 @@ class Solver:
         else:
             spec = mujoco.MjSpec.from_file(str(model))
         add_target_pool(spec, n_targets)
+        for g in list(spec.geoms):  # looks only (no mass, no contact): kinematics skips them
+            if g.contype == 0 and g.conaffinity == 0 and not g.mass > 0 and g.density == 0:
+                spec.delete(g)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         m = self.model

@@ -927,7 +927,7 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
   PyObject* history = PyList_New(0);
   PyObject* result = NULL;
   memcpy(q, bq.buf, sizeof(double) * nq);
-  int cur = 0, it = 0, converged = 0, moves = 1;
+  int cur = 0, it = 0, stalls = 0, moves = 1;
   double nat = 0.0, radius = step0;
   if (evaluate(s, q, collide, cur)) goto done;
   if (natural_rows(s, rn[cur], Jn[cur]) < 0) goto done;
@@ -937,16 +937,21 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
     const double* J = s->J[cur];
     const double* rnc = rn[cur];
     const double* Jnc = Jn[cur];
-    for (int a = 0; a < nm; a++) {
-      double x = 0;
-      for (int i = 0; i < nrn; i++) x += Jnc[(size_t)i * n + mov[a]] * rnc[i];
-      gn[a] = x;
-      for (int b = a; b < nm; b++) {
-        double h = 0;
-        for (int i = 0; i < nrn; i++) h += Jnc[(size_t)i * n + mov[a]] * Jnc[(size_t)i * n + mov[b]];
-        Hn[a * nm + b] = Hn[b * nm + a] = h;
+    /* Gauss-Newton model of the naturalness, row by row: a comfort row has one entry */
+    memset(gn, 0, sizeof(double) * nm);
+    memset(Hn, 0, sizeof(double) * nm * nm);
+    for (int i = 0; i < nrn; i++) {
+      const double* row = Jnc + (size_t)i * n;
+      for (int a = 0; a < nm; a++) {
+        double x = row[mov[a]];
+        if (x == 0.0) continue;
+        gn[a] += x * rnc[i];
+        double* Ha = Hn + (size_t)a * nm;
+        for (int b = a; b < nm; b++) Ha[b] += x * row[mov[b]];
       }
     }
+    for (int a = 0; a < nm; a++)
+      for (int b = 0; b < a; b++) Hn[a * nm + b] = Hn[b * nm + a];
     /* The step minimises the naturalness model plus rho |A s|^2 (A: the constraint and
        collision rows), rho so large that a direction of A with a singular value over
        null_tol of their scale is held still: the null-space step without a factorisation
@@ -1050,15 +1055,15 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
       cur = nxt;
       nat = nat_new;
       radius = fmin(2.0 * radius, max_step);
-      converged = gain < 1e-3; /* a step that gains under 0.1 % */
+      stalls = gain < 1e-3 ? stalls + 1 : 0; /* a step that gains under 0.1 % */
     } else {
       radius *= 0.25;
-      converged = radius < 1e-3; /* no step gains, down to a milliradian */
+      stalls += radius < 1e-3 ? 1 : 0; /* no step gains, down to a milliradian */
     }
     PyObject* h = PyFloat_FromDouble(dot(s->r[cur], s->r[cur], s->rows[cur]));
     PyList_Append(history, h);
     Py_DECREF(h);
-    if (converged) break;
+    if (stalls >= 2) break;
   }
   if (it > iters) it = iters;
   result = Py_BuildValue("(NdiN)", as_bytes(q, nq), nat, it, history);

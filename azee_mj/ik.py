@@ -485,8 +485,8 @@ class Solver:
         with a singular value over ``NULL_TOL`` of the rows' scale are held still, the rest
         is the null space; a trust radius from ``NATURAL_STEP``
         doubling on success up to ``MAX_STEP`` and quartered on failure, at most
-        ``NATURAL_ITER`` steps; it ends at a step that gains under 0.1 % or when no step down
-        to a milliradian gains."""
+        ``NATURAL_ITER`` steps; two stalls end it (steps that gain under 0.1 %, or no step
+        down to a milliradian that gains)."""
         free = plan.free
         mov = np.flatnonzero(~plan.pinned)  # a joint target (a hand shape) pins its joint
         if self.naturalness is None or not mov.size:

@@ -59,6 +59,9 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 #: knuckle touches at an angle (a finger does not point straight into the face).
 FACING_TOL = {"PA": 5.0, "H_BACK": 5.0, "H_EDGE": 10.0, "viande": 20.0, "PAD": 30.0,
               "TIP": 20.0, "NA": 45.0, "KN": 45.0, "KNi": 45.0, "BACK": 45.0, "INT": 45.0}
+#: How much wider the facing tolerance of two joined hands gets when head-on they would
+#: meet only behind the back (the realizer then joins them in front, leaning).
+FACING_WIDEN = 2.0
 #: How far from the signing space two joined hands may drift at the cost of one unit of
 #: naturalness [m].
 MEET_TOL = 0.1
@@ -504,6 +507,15 @@ class Realizer:
         res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where,
                                 restarts=restarts)  # fmt: skip
         self.n_key += 1
+        if facing and res.converged and self._joined_behind(cons, res.qpos):
+            # Hands join in the signing space before they meet head-on: face to face with
+            # a wider tolerance there (a fingertip on the back of the other hand, leaning).
+            wide = [dataclasses.replace(f, tol=FACING_WIDEN * f.tol) for f in facing]
+            alt = self.motion.solve(cons + wide, free, q0, t0, seeds, preferences=where,
+                                    restarts=restarts)  # fmt: skip
+            self.n_key += 1
+            if alt.converged and not self._joined_behind(cons, alt.qpos):
+                return alt, cons + wide, free
         if facing and not res.converged:
             # Face to face is a preference below the score's constraints: without it?
             plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where,
@@ -512,6 +524,25 @@ class Realizer:
             if plain.converged or _violation(plain) < _violation(res):
                 return plain, cons, free
         return res, cons + facing, free
+
+    def _joined_behind(self, cons, q: np.ndarray) -> bool:
+        """Whether a placement of ``cons`` that joins the two hands meets, in posture
+        ``q``, behind the chest's frontal plane (the hands behind the back)."""
+        chest = self.smap.bones.get("back_2")
+        if chest is None:
+            return False
+        joined = [c for c in cons if isinstance(c, cn.Place) and isinstance(c.target, SitePos)
+                  and (a := self._hand_of(c.site)) is not None
+                  and (b := self._hand_of(c.target.site)) is not None and a is not b]  # fmt: skip
+        if not joined:
+            return False
+        d = self.solver.data
+        d.qpos[:] = q
+        mujoco.mj_kinematics(self.m, d)
+        body = self.solver.body_id(chest.body)
+        forward = d.xmat[body].reshape(3, 3) @ np.asarray(chest.nrm, float)
+        return any((d.site_xpos[self.solver.site_id(c.site)] - d.xpos[body]) @ forward < 0.0
+                   for c in joined)  # fmt: skip
 
     def _meeting_place(self, cons) -> tuple[cn.Place, ...]:
         """Where two hands meet when nothing else places them: a preference (with the

@@ -7,6 +7,7 @@ elbows below their shoulders (every hand here is below the eyes). The previous s
 five of the six (``bench/results/natural-previous.json``).
 """
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -63,3 +64,22 @@ def test_contact_is_met_naturally(solver, model, site, at, strong, weak):
         a = e.arm(side)
         assert a.hand_above_eyes < 0.0
         assert a.elbow_above_shoulder < 0.0, f"elbow {side} {a.elbow_above_shoulder * 1e3:.0f} mm above its shoulder"
+
+
+def test_hands_join_in_front_not_behind_the_back(solver, model):
+    """An index tip on the back of the other hand: head-on it is met only behind the back;
+    the hands join in front of the chest instead, the fingertip leaning
+    (``timeline.FACING_WIDEN``)."""
+    ro = realize(contact_score("@I_TIP(s)", "@H_BACK(w)", INDEX, FLAT), fps=50, solver=solver)
+    touch = [t for t in ro.traces if t.block == "C.TOUCH"]
+    assert len(touch) == 1 and touch[0].ok, touch[0].describe()
+    held = ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
+    d = mujoco.MjData(model)
+    d.qpos[:] = held
+    mujoco.mj_kinematics(model, d)
+    chest = model.body("back_2")
+    forward = d.xmat[chest.id].reshape(3, 3)[:, 0]
+    tip = d.site("I_TIP_R").xpos
+    assert (tip - d.xpos[chest.id]) @ forward > 0.1, "the hands meet behind the chest"
+    e = ergonomics(model, held)
+    assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG

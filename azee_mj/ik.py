@@ -174,8 +174,7 @@ class Solver:
     """Solves :class:`IKProblem` s on one model.
 
     The solver compiles its own copy of the model with ``n_targets`` mocap targets and as
-    many inactive ``connect`` equalities (see :meth:`configure_equalities`), without the
-    geoms that only show (no contact, no mass).
+    many inactive ``connect`` equalities (see :meth:`configure_equalities`).
 
     Args:
       model: an MJCF path or an ``MjSpec`` (copied).
@@ -214,9 +213,6 @@ class Solver:
         else:
             spec = mujoco.MjSpec.from_file(str(model))
         add_target_pool(spec, n_targets)
-        for g in list(spec.geoms):  # looks only (no mass, no contact): kinematics skips them
-            if g.contype == 0 and g.conaffinity == 0 and not g.mass > 0 and g.density == 0:
-                spec.delete(g)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         m = self.model
@@ -632,17 +628,17 @@ def _geom_clusters(m: mujoco.MjModel, d: mujoco.MjData, q: np.ndarray,
             members.setdefault(b, []).append(g)
             b = m.body_parentid[b]
 
-    def small(b):
-        gs = members[b]
+    small = {}
+    for b, gs in members.items():
         reach = np.linalg.norm(d.geom_xpos[gs] - d.xpos[b], axis=1) + m.geom_rbound[gs]
-        return len(gs) >= 2 and bool(np.all(m.geom_rbound[gs] > 0)) and reach.max() <= radius
+        small[b] = len(gs) >= 2 and bool(np.all(m.geom_rbound[gs] > 0)) and reach.max() <= radius
 
     out = np.full(m.ngeom, -1, np.int32)
     roots: dict[int, int] = {}
     for g in geoms:
         b, root = m.geom_bodyid[g], None
         while b > 0:
-            if small(b):
+            if small[b]:
                 root = b
             b = m.body_parentid[b]
         key = -1 - g if root is None else root

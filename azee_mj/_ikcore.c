@@ -242,7 +242,8 @@ static int penetrations(const mjModel* m, mjData* d, int g1, int g2, mjPreContac
   const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
   double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
   double bound = m->geom_rbound[g1] + m->geom_rbound[g2];
-  if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 && dx * dx + dy * dy + dz * dz > bound * bound)
+  if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 &&
+      dx * dx + dy * dy + dz * dz > bound * bound)
     return 0;
   return mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, 0.0);
 }
@@ -257,8 +258,9 @@ static void cluster_spheres(Core* s) {
     int c = s->gclu[g];
     if (c < 0) continue;
     if (s->crad[c] < 0) s->crad[c] = 0.0, mju_copy3(s->ccen + 3 * c, d->geom_xpos + 3 * g);
-    double r = m->geom_rbound[g] > 0 ? sqrt(dist2(d->geom_xpos + 3 * g, s->ccen + 3 * c)) + m->geom_rbound[g]
-                                     : INFINITY;
+    double r = m->geom_rbound[g] > 0
+                   ? sqrt(dist2(d->geom_xpos + 3 * g, s->ccen + 3 * c)) + m->geom_rbound[g]
+                   : INFINITY;
     if (r > s->crad[c]) s->crad[c] = r;
   }
 }

@@ -16,7 +16,8 @@ pairs a contact brings together. Time is wall time per solve (the solver's own) 
 it, the process's CPU time (``time.thread_time``), which other jobs on a shared machine
 inflate less. Each method goes over the keyframes ``--repeat`` times (default 3, every pass
 from the same start, reaching the same postures); a keyframe's time is its best pass, the
-way ``timeit`` reads a noisy machine, and each pass's own median and p90 are kept beside it. ``--quick`` runs 30 keyframes and writes nothing unless
+way ``timeit`` reads a noisy machine, and each pass's own median and p90 are kept beside it.
+``--quick`` runs 30 keyframes and writes nothing unless
 ``--out`` is given; the full run writes ``bench/results/ik.json``.
 """
 

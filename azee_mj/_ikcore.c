@@ -629,6 +629,30 @@ static PyObject* Core_deepest(Core* s, PyObject* args) {
   return PyFloat_FromDouble(depth);
 }
 
+/* H (nc x nc, symmetric) = A^T A and, with r, g = A^T r, for A the columns cols (nc of
+   them; NULL: all n) of the rows x n matrix J; row by row, skipping exact zeros (a sparse
+   row, a comfort row with one entry, costs its nonzeros only). */
+static void normal_eq(const double* J, const double* r, int rows, int n, const int* cols,
+                      int nc, double* H, double* g) {
+  memset(H, 0, sizeof(double) * nc * nc);
+  if (g) memset(g, 0, sizeof(double) * nc);
+  for (int i = 0; i < rows; i++) {
+    const double* row = J + (size_t)i * n;
+    for (int a = 0; a < nc; a++) {
+      double x = row[cols ? cols[a] : a];
+      if (x == 0.0) continue;
+      if (g) g[a] += x * r[i];
+      double* Ha = H + (size_t)a * nc;
+      if (cols)
+        for (int b = a; b < nc; b++) Ha[b] += x * row[cols[b]];
+      else
+        for (int b = a; b < nc; b++) Ha[b] += x * row[b];
+    }
+  }
+  for (int a = 0; a < nc; a++)
+    for (int b = 0; b < a; b++) H[a * nc + b] = H[b * nc + a];
+}
+
 static double cost_of(Core* s, int b, const double* q, double posture, const double* w,
                       const double* nat) {
   double c = 0;
@@ -693,20 +717,7 @@ static PyObject* Core_lm(Core* s, PyObject* args) {
     int k = s->rows[cur];
     const double* r = s->r[cur];
     const double* J = s->J[cur];
-    memset(H, 0, sizeof(double) * n * n);
-    memset(g, 0, sizeof(double) * n);
-    for (int i = 0; i < k; i++) {
-      const double* row = J + (size_t)i * n;
-      for (int a = 0; a < n; a++) {
-        double x = row[a];
-        if (x == 0.0) continue;
-        g[a] += x * r[i];
-        double* Ha = H + (size_t)a * n;
-        for (int b = a; b < n; b++) Ha[b] += x * row[b];
-      }
-    }
-    for (int a = 0; a < n; a++)
-      for (int b = 0; b < a; b++) H[a * n + b] = H[b * n + a];
+    normal_eq(J, r, k, n, NULL, n, H, g);
     if (posture)
       for (int a = 0; a < n; a++) {
         H[a * n + a] += p2 * w[a];
@@ -939,36 +950,13 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
     const double* J = s->J[cur];
     const double* rnc = rn[cur];
     const double* Jnc = Jn[cur];
-    /* Gauss-Newton model of the naturalness, row by row: a comfort row has one entry */
-    memset(gn, 0, sizeof(double) * nm);
-    memset(Hn, 0, sizeof(double) * nm * nm);
-    for (int i = 0; i < nrn; i++) {
-      const double* row = Jnc + (size_t)i * n;
-      for (int a = 0; a < nm; a++) {
-        double x = row[mov[a]];
-        if (x == 0.0) continue;
-        gn[a] += x * rnc[i];
-        double* Ha = Hn + (size_t)a * nm;
-        for (int b = a; b < nm; b++) Ha[b] += x * row[mov[b]];
-      }
-    }
-    for (int a = 0; a < nm; a++)
-      for (int b = 0; b < a; b++) Hn[a * nm + b] = Hn[b * nm + a];
+    normal_eq(Jnc, rnc, nrn, n, mov, nm, Hn, gn); /* Gauss-Newton model of the naturalness */
     /* The step minimises the naturalness model plus rho |A s|^2 (A: the constraint and
        collision rows), rho so large that a direction of A with a singular value over
        null_tol of their scale is held still: the null-space step without a factorisation
        of A (one Cholesky of nm x nm). A joint the step would take out of its range is held
        too, and the step solved again. */
-    memset(G, 0, sizeof(double) * nm * nm);
-    for (int i = 0; i < rows; i++) {
-      const double* row = J + (size_t)i * n;
-      for (int a = 0; a < nm; a++) {
-        double x = row[mov[a]];
-        if (x == 0.0) continue;
-        double* Ga = G + (size_t)a * nm;
-        for (int b = a; b < nm; b++) Ga[b] += x * row[mov[b]];
-      }
-    }
+    normal_eq(J, NULL, rows, n, mov, nm, G, NULL);
     double trg = 0, trn = 0;
     for (int a = 0; a < nm; a++) trg += G[a * nm + a], trn += Hn[a * nm + a];
     double hs = trn / (nm ? nm : 1) + 1e-12;
@@ -1018,22 +1006,9 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
       if (!kr || max_norm(s, nxt) <= stop) break;
       const double* Jx = s->J[nxt];
       const double* rx = s->r[nxt];
-      memset(H, 0, sizeof(double) * n * n);
-      memset(g, 0, sizeof(double) * n);
-      for (int i = 0; i < kr; i++) {
-        const double* row = Jx + (size_t)i * n;
-        for (int a = 0; a < n; a++) {
-          double x = row[a];
-          if (x == 0.0) continue;
-          g[a] += x * rx[i];
-          for (int b = a; b < n; b++) H[a * n + b] += x * row[b];
-        }
-      }
+      normal_eq(Jx, rx, kr, n, NULL, n, H, g);
       double trh = 0;
-      for (int a = 0; a < n; a++) {
-        for (int b = 0; b < a; b++) H[a * n + b] = H[b * n + a];
-        trh += H[a * n + a];
-      }
+      for (int a = 0; a < n; a++) trh += H[a * n + a];
       for (int a = 0; a < n; a++) {
         H[a * n + a] += 1e-9 * (trh / n + 1.0);
         los[a] = lo[a] - qn[s->free[a]];

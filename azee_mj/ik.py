@@ -174,7 +174,8 @@ class Solver:
     """Solves :class:`IKProblem` s on one model.
 
     The solver compiles its own copy of the model with ``n_targets`` mocap targets and as
-    many inactive ``connect`` equalities (see :meth:`configure_equalities`).
+    many inactive ``connect`` equalities (see :meth:`configure_equalities`), without the
+    geoms that only show (MuJoCo's ``discardvisual``: no contact, no mass).
 
     Args:
       model: an MJCF path or an ``MjSpec`` (copied).
@@ -213,6 +214,7 @@ class Solver:
         else:
             spec = mujoco.MjSpec.from_file(str(model))
         add_target_pool(spec, n_targets)
+        spec.compiler.discardvisual = True  # geoms that only show: kinematics skips them
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         m = self.model

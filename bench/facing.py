@@ -131,23 +131,26 @@ class Reach:
         """How far the elbow is below the shoulder joint [m]."""
         return float(self.d.xpos[self.shoulder][2] - self.d.xpos[self.elbow][2])
 
-    def facing_rows(self, x):
+    def contact(self, x):
+        """On posture ``x``: the gap between the two sites and the sum of their outward
+        normals (zero face to face)."""
         self.set(x)
         p, _ = self.gap()
         a = self.d.site_xmat[self.s1].reshape(3, 3) @ self.n1
         b = self.d.site_xmat[self.s2].reshape(3, 3) @ self.n2
+        return p, a + b
+
+    def facing_rows(self, x):
+        p, ab = self.contact(x)
         _, other = self.depths(hand_free=True)
         low = max(0.0, 0.02 - self.elbow_drop())
-        return np.r_[p * 1e4, (a + b) * 57.3, other * 1e5, low * 1e4]
+        return np.r_[p * 1e4, ab * 57.3, other * 1e5, low * 1e4]
 
     def touching_rows(self, x):
-        self.set(x)
-        p, _ = self.gap()
-        a = self.d.site_xmat[self.s1].reshape(3, 3) @ self.n1
-        b = self.d.site_xmat[self.s2].reshape(3, 3) @ self.n2
+        p, ab = self.contact(x)
         pair, other = self.depths(hand_free=False)
         over = max(0.0, pair - cn.CONTACT_ALLOWANCE)
-        return np.r_[p * 1e3, (a + b) * 5.73, over * 3e4, other * 3e4]
+        return np.r_[p * 1e3, ab * 5.73, over * 3e4, other * 3e4]
 
     def search(self, rows, starts: int, ok, first=()) -> np.ndarray | None:
         """Bounded least squares of ``rows`` from the postures ``first`` (arm joints),

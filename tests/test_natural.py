@@ -139,14 +139,17 @@ def test_the_natural_term_never_moves_a_met_constraint(solver):
     assert _cost(solver, problem, polished.qpos) < 0.8 * _cost(solver, problem, plain.qpos)
 
 
+#: The index-pointing hand shape of the scores below (fist, index straight).
+INDEX_SHAPE = [{"type": "morph", "id": "fist", "weight": 1.0},
+               {"type": "morph", "id": "index_bend", "weight": -1.04},
+               {"type": "morph", "id": "index_hook", "weight": -1.1}]  # fmt: skip
+
+
 def test_the_hand_goes_to_the_face_not_the_face_to_the_hand(solver):
     rollout = timeline.realize({
         "format": "azee-score", "version": 1, "strong_side": "R",
         "root": {"name": "C", "kind": "sync", "start": 0, "end": 1.0, "children": [
-            {"name": "HS", "kind": "cstr", "start": 0, "end": 1.0, "constraints": [
-                {"type": "morph", "id": "fist", "weight": 1},
-                {"type": "morph", "id": "index_bend", "weight": -1.04},
-                {"type": "morph", "id": "index_hook", "weight": -1.1}]},
+            {"name": "HS", "kind": "cstr", "start": 0, "end": 1.0, "constraints": INDEX_SHAPE},
             {"name": "K", "kind": "cstr", "start": 0.4, "end": 1.0, "constraints": [
                 {"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"}]}]}}, solver=solver)
     assert all(t.ok for t in rollout.traces)
@@ -199,10 +202,7 @@ def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_help
     score = {
         "format": "azee-score", "version": 1, "strong_side": "R",
         "root": {"name": "P", "kind": "sync", "start": 0, "end": 0.8, "children": [
-            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
-                {"type": "morph", "id": "fist", "weight": 1.0},
-                {"type": "morph", "id": "index_bend", "weight": -1.04},
-                {"type": "morph", "id": "index_hook", "weight": -1.1}]},
+            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": INDEX_SHAPE},
             {"name": "IX", "kind": "cstr", "start": 0.35, "end": 0.8, "constraints": [
                 {"type": "place", "site": "@I_TIP(s)", "at": {
                     "translate": {"mid": ["@ST(s)", "^Rssp"]}, "by": {"scale": "fwd", "by": 0.05}}},

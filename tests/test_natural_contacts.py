@@ -50,14 +50,18 @@ CASES = [
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize("site, at, strong, weak", CASES)
-def test_contact_is_met_naturally(solver, model, site, at, strong, weak):
+def held_posture(solver, site, at, strong, weak=None):
+    """The posture (nq,) half way through the hold of a contact, which must be met."""
     ro = realize(contact_score(site, at, strong, weak), fps=50, solver=solver)
     touch = [t for t in ro.traces if t.block == "C.TOUCH"]
     assert len(touch) == 1
     assert touch[0].ok, touch[0].describe()
-    held = ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
-    e = ergonomics(model, held)
+    return ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
+
+
+@pytest.mark.parametrize("site, at, strong, weak", CASES)
+def test_contact_is_met_naturally(solver, model, site, at, strong, weak):
+    e = ergonomics(model, held_posture(solver, site, at, strong, weak))
     assert e.trunk_angle < 10 * DEG, f"trunk {e.trunk_angle / DEG:.1f} deg from upright"
     assert e.head_angle < 15 * DEG, f"head {e.head_angle / DEG:.1f} deg from upright"
     for side in "RL":
@@ -70,10 +74,7 @@ def test_hands_join_in_front_not_behind_the_back(solver, model):
     """An index tip on the back of the other hand: head-on it is met only behind the back;
     the hands join in front of the chest instead, the fingertip leaning
     (``timeline.FACING_WIDEN``)."""
-    ro = realize(contact_score("@I_TIP(s)", "@H_BACK(w)", INDEX, FLAT), fps=50, solver=solver)
-    touch = [t for t in ro.traces if t.block == "C.TOUCH"]
-    assert len(touch) == 1 and touch[0].ok, touch[0].describe()
-    held = ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
+    held = held_posture(solver, "@I_TIP(s)", "@H_BACK(w)", INDEX, FLAT)
     d = mujoco.MjData(model)
     d.qpos[:] = held
     mujoco.mj_kinematics(model, d)

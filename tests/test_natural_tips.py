@@ -3,30 +3,25 @@
 """
 
 import mujoco
-import numpy as np
 import pytest
 
 from azee_mj import natural
 from azee_mj.ergonomics import ergonomics
 from azee_mj.kinematics import Kinematics
-from azee_mj.timeline import realize
 
-from test_natural_contacts import DEG, FLAT, HOLD, INDEX, contact_score
-
-
-def held_posture(solver, site, at, strong):
-    ro = realize(contact_score(site, at, strong), fps=50, solver=solver)
-    touch = [t for t in ro.traces if t.block == "C.TOUCH"]
-    assert len(touch) == 1
-    assert touch[0].ok, touch[0].describe()
-    return ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
+from test_natural_contacts import DEG, FLAT, INDEX, held_posture
 
 
-def test_an_index_on_the_forehead_comes_from_the_front_with_the_elbow_forward(solver, model):
-    q = held_posture(solver, "@I_TIP(s)", "@FH", INDEX)
+def upright_ergonomics(model, q):
+    """The ergonomics of posture ``q``, checked: RULA 4 or less, trunk and head upright."""
     e = ergonomics(model, q)
     assert e.rula.score <= 4, f"RULA {e.rula.score}"
     assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
+    return e
+
+
+def test_an_index_on_the_forehead_comes_from_the_front_with_the_elbow_forward(solver, model):
+    e = upright_ergonomics(model, held_posture(solver, "@I_TIP(s)", "@FH", INDEX))
     # the elbow no higher than 5 cm above the shoulder (it rose 10 cm with a 20-degree rule)
     assert e.arm("R").elbow_above_shoulder < 0.05
 
@@ -34,10 +29,7 @@ def test_an_index_on_the_forehead_comes_from_the_front_with_the_elbow_forward(so
 def test_an_index_on_the_temple_keeps_the_elbow_below_the_shoulder(solver, model):
     # With the 20-degree fingertip rule the finger pointed straight into the side of the
     # head and the elbow rose 43 mm above the shoulder (RULA 5).
-    q = held_posture(solver, "@I_TIP(s)", "@TE(s)", INDEX)
-    e = ergonomics(model, q)
-    assert e.rula.score <= 4, f"RULA {e.rula.score}"
-    assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
+    e = upright_ergonomics(model, held_posture(solver, "@I_TIP(s)", "@TE(s)", INDEX))
     assert e.arm("R").elbow_above_shoulder < 0.0
 
 

@@ -254,7 +254,7 @@ class Realizer:
         ssp = self.smap.loci.get("ssp")
         self._meet = ssp if ssp is not None and mujoco.mj_name2id(
             self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
-        chest = self.smap.bones.get("back_2")
+        self._chest = chest = self.smap.bones.get("back_2")
         #: The chest upright, a preference once the trunk is recruited (least recruitment).
         self._upright = () if chest is None else (
             cn.Orient(chest.body, chest.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)),
@@ -528,13 +528,9 @@ class Realizer:
     def _joined_behind(self, cons, q: np.ndarray) -> bool:
         """Whether a placement of ``cons`` that joins the two hands meets, in posture
         ``q``, behind the chest's frontal plane (the hands behind the back)."""
-        chest = self.smap.bones.get("back_2")
-        if chest is None:
-            return False
-        joined = [c for c in cons if isinstance(c, cn.Place) and isinstance(c.target, SitePos)
-                  and (a := self._hand_of(c.site)) is not None
-                  and (b := self._hand_of(c.target.site)) is not None and a is not b]  # fmt: skip
-        if not joined:
+        chest = self._chest
+        joined = [c for c in cons if self._joins_hands(c)]
+        if chest is None or not joined:
             return False
         d = self.solver.data
         d.qpos[:] = q
@@ -543,6 +539,13 @@ class Realizer:
         forward = d.xmat[body].reshape(3, 3) @ np.asarray(chest.nrm, float)
         return any((d.site_xpos[self.solver.site_id(c.site)] - d.xpos[body]) @ forward < 0.0
                    for c in joined)  # fmt: skip
+
+    def _joins_hands(self, c) -> bool:
+        """Whether constraint ``c`` places a site of one hand on a site of the other."""
+        if not isinstance(c, cn.Place) or not isinstance(c.target, SitePos):
+            return False
+        arm, other = self._hand_of(c.site), self._hand_of(c.target.site)
+        return arm is not None and other is not None and other is not arm
 
     def _meeting_place(self, cons) -> tuple[cn.Place, ...]:
         """Where two hands meet when nothing else places them: a preference (with the
@@ -560,8 +563,7 @@ class Realizer:
         arm = self._hand_of(c.site)
         if arm is None:
             return ()
-        other = self._hand_of(c.target.site)
-        if other is not None and other is not arm:
+        if self._joins_hands(c):
             return (cn.Place(c.site, SitePos(self._meet), MEET_TOL, "meet"),)
         held = self._carried_by(c.target.site)
         if held is not None and held[0] is not arm:

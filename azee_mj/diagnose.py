@@ -8,7 +8,8 @@ per constraint that misses, tried in this order:
    clavicle for a hand) than the limb can stretch (the sum of its segments), by how much;
 2. **conflict**: this one alone can be met, but not together with one other named one;
 3. **blocked by a collision**: the problem is met with self-collision switched off; the
-   two body parts closest to each other at the result are named;
+   two body parts that solution drives deepest into each other are named, with how deep
+   (or, when it drives none into another, the two closest at the result);
 4. **stopped by a joint limit**: a free joint sits at a limit and moving it past the limit
    would reduce the residual; the joint that would help most is named;
 5. otherwise a local minimum of the solver.
@@ -28,6 +29,11 @@ from azee_mj import constraints as cn
 from azee_mj import ik
 
 
+#: How deep two parts must pass into each other at a collision-free solution to be named
+#: as what blocks it [m]: deeper than the contact allowance.
+PASS_THROUGH = 2 * cn.CONTACT_ALLOWANCE
+
+
 @dataclasses.dataclass(frozen=True)
 class Diagnosis:
     """Why constraint ``label`` misses: ``kind`` is ``reach``, ``conflict``, ``collision``,
@@ -39,13 +45,14 @@ class Diagnosis:
 
 
 def diagnose(solver: ik.Solver, problem: ik.IKProblem, result: ik.IKResult,
-             q0: np.ndarray, limb_root=None) -> tuple[Diagnosis, ...]:  # fmt: skip
+             q0: np.ndarray, limb_root=None, only: str | None = None) -> tuple[Diagnosis, ...]:
     """A :class:`Diagnosis` for each hard constraint of ``problem`` that ``result`` (solved
-    from ``q0``) misses. ``limb_root(site)`` is the body where the limb carrying a model site
-    starts (a clavicle for a hand site), or None: reach is measured from there."""
+    from ``q0``) misses (only the one labelled ``only``, if given). ``limb_root(site)`` is
+    the body where the limb carrying a model site starts (a clavicle for a hand site), or
+    None: reach is measured from there."""
     out = []
     missed = [(c, r) for c, r in zip(problem.constraints, result.residuals)
-              if not c.soft and not r.ok]  # fmt: skip
+              if not c.soft and not r.ok and only in (None, c.label)]  # fmt: skip
     for c, r in missed:
         d = (_reach(solver, c, result.qpos, limb_root) or _conflict(solver, problem, c, q0)
              or _collision(solver, problem, c, result.qpos) or _limit(solver, problem, c, result.qpos))
@@ -92,8 +99,9 @@ def _conflict(solver, problem, c, q0) -> Diagnosis | None:
         return res.residuals[keep.index(c)].ok
 
     block = c.label.rsplit("#", 1)[0]
+    # (not the one it derives from: ``X:facing`` of placement ``X``)
     others = sorted((o for o in problem.constraints if o is not c and not o.soft
-                     and not isinstance(o, cn.JointTarget)),
+                     and not isinstance(o, cn.JointTarget) and not c.label.startswith(f"{o.label}:")),
                     key=lambda o: o.label.rsplit("#", 1)[0] != block)  # its own block first
     if not others or not met_with(()):
         return None
@@ -105,19 +113,27 @@ def _conflict(solver, problem, c, q0) -> Diagnosis | None:
 
 
 def _collision(solver, problem, c, q) -> Diagnosis | None:
+    """Met with self-collision off: the two parts that solution drives deepest into each
+    other (or, if none, the two closest at ``q``)."""
     res = solver.solve(dataclasses.replace(problem, collide=False, natural=False), q)
     if not res.residuals[problem.constraints.index(c)].ok:
         return None
     m, d = solver.model, solver.data
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_collision(m, d)
-    if not d.ncon:
+    for x in (res.qpos, q):
+        d.qpos[:] = x
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        dist = d.contact.dist[: d.ncon]
+        if d.ncon and (x is q or dist.min() < -PASS_THROUGH):
+            break
+    else:
         return Diagnosis(c.label, "collision", "blocked by self-collision")
-    i = int(np.argmin(d.contact.dist[: d.ncon]))
-    g = d.contact.geom[i]
-    a, b = (_name(m, mujoco.mjtObj.mjOBJ_BODY, m.geom_bodyid[x]) for x in g)
-    return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b}")
+    i = int(np.argmin(dist))
+    a, b = (_name(m, mujoco.mjtObj.mjOBJ_BODY, m.geom_bodyid[g]) for g in d.contact.geom[i])
+    if x is q:
+        return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b}")
+    return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b} (met "
+                     f"only with them {-dist[i] * 1000:.0f} mm into each other)")  # fmt: skip
 
 
 def _limit(solver, problem, c, q) -> Diagnosis | None:

@@ -247,6 +247,9 @@ class Realizer:
         self.n_key = 0
         #: constraint label -> why its key posture misses it (see :mod:`azee_mj.diagnose`)
         self.reasons: dict[str, str] = {}
+        #: facing label -> (result, cons, free, start, t0) of a face-to-face solve that
+        #: failed and was dropped for the placement alone
+        self._unfaced: dict[str, tuple] = {}
         self.arms = reach.arms_of(self.smap)
         #: arm -> the model site of its palm's centre (AZee ``PA``), or None
         self._palms = {a: self._palm_site(a) for a in self.arms}
@@ -352,7 +355,8 @@ class Realizer:
                 if not res.converged:
                     problem = self.motion.problem(cons, free, before, t0, natural=False)
                     for dg in diagnose(self.solver, problem, res, before, self._limb_root):
-                        self.reasons.setdefault(dg.label, dg.detail)
+                        if dg.label not in self.reasons:
+                            self.reasons[dg.label] = dg.detail + self._why_not_facing(dg.label)
                 for t in group:
                     d = self.track_dofs[t]
                     state[d] = res.qpos[d]
@@ -522,8 +526,22 @@ class Realizer:
                                       restarts=restarts)  # fmt: skip
             self.n_key += 1
             if plain.converged or _violation(plain) < _violation(res):
+                if not plain.converged:  # kept to say why face to face failed, if asked
+                    self._unfaced.update({f.label: (res, cons + facing, free, q0, t0)
+                                          for f in facing})  # fmt: skip
                 return plain, cons, free
         return res, cons + facing, free
+
+    def _why_not_facing(self, label: str) -> str:
+        """Why placement ``label`` could not be met face to face, when it was solved
+        without its facing after that failed (``"; face to face, ..."``), else ``""``."""
+        kept = self._unfaced.get(f"{label}:facing")
+        if kept is None:
+            return ""
+        res, cons, free, q0, t0 = kept
+        problem = self.motion.problem(cons, free, q0, t0, natural=False)
+        why = diagnose(self.solver, problem, res, q0, self._limb_root, only=f"{label}:facing")
+        return f"; face to face, {why[0].detail}" if why else ""
 
     def _joined_behind(self, cons, q: np.ndarray) -> bool:
         """Whether a placement of ``cons`` that joins the two hands meets, in posture

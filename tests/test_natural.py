@@ -424,6 +424,23 @@ def test_a_miss_says_why(solver):
     assert why["R.TWO#2"] == "conflicts with R.TWO#1: each can be met without the other"
 
 
+def test_a_collision_names_what_would_pass_through(solver):
+    # The back of the fist on the front of the belly: its edge stops on the belly, and face
+    # to face the forearm would have to pass through it.
+    score = {"format": "azee-score", "version": 1, "strong_side": "R",
+             "root": {"name": "C", "kind": "sync", "start": 0, "end": 0.8, "children": [
+                 {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
+                     {"type": "morph", "id": "fist", "weight": 1, "side": "s"}]},
+                 {"name": "K", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": [
+                     {"type": "place", "site": "@H_BACK(s)", "at": "@AB(s)"}]}]}}
+    trace = next(t for t in timeline.realize(score, solver=solver).traces if t.block == "C.K")
+    assert not trace.ok
+    assert trace.reason == (
+        "blocked by a collision between back_1 and palm_R (met only with them 29 mm into each "
+        "other); face to face, blocked by a collision between f_arm_R and back_1 (met only "
+        "with them 72 mm into each other)")
+
+
 def test_a_joint_limit_is_named(solver):
     # The face turned straight back: the neck, head and trunk rotations all end at limits.
     score = {"format": "azee-score", "version": 1, "strong_side": "R",

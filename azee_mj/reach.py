@@ -170,7 +170,8 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
     placement of a site on its hand; when a placement joins the two hands, both hands
     meeting at model site ``meet`` (the neutral signing space), once as the arms bring them (palms facing each
     other) and once stacked, both forearms pronated (palms down: a palm on the back of the
-    other hand); and when a fingertip must
+    other hand), and for a fingertip on the other hand that hand there palm down with the
+    fingertip reaching it head-on; and when a fingertip must
     meet its target face to face (an ``Orient`` ``OPP`` of the two bodies' normals among
     ``cons``), the arm bringing it in head-on (see :func:`arm_seed`); when a hand touches
     the other arm, that arm with its palm in the signing space first, then the hand
@@ -206,7 +207,7 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             mujoco.mj_comPos(m, d)
         return q
 
-    reach, meeting, head_on, used = [], [], [], set()
+    reach, meeting, head_on, used, joined = [], [], [], set(), None
     for c in cons:
         if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
             continue
@@ -222,6 +223,7 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             gap = np.array([0.0, MEET_GAP, 0.0])
             meeting = [(arm, c.site, centre + arm.out * gap),
                        (other, c.target.site, centre + other.out * gap)]
+            joined = (arm, other, c, centre)
     if head_on:
         head_on += [g for g in reach if g[0] not in {h[0] for h in head_on}]
     seeds = [seeded(g) for g in (reach, meeting, head_on) if g]
@@ -234,6 +236,14 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             if a.pron and a.pron in free:
                 stacked[m.jnt_qposadr[solver.joint_id(a.pron)]] = STACKED_PRONATION
         seeds.append(stacked)
+        (arm, other, c, centre), aimed = joined, [h[0] for h in head_on]
+        if arm in aimed:
+            # a fingertip on the other hand: that hand held in the signing space first,
+            # palm down, then the fingertip reaching it there head-on
+            held = seeded([(other, c.target.site, centre)])
+            if other.pron and other.pron in free:
+                held[m.jnt_qposadr[solver.joint_id(other.pron)]] = STACKED_PRONATION
+            seeds += _then_reach(solver, held, arm, c, cons, q0)[1:]
     if seeds and carried_by is not None:
         seeds += _across(solver, arms, cons, q0, hand_of, carried_by, seeded)
     return tuple(seeds)
@@ -244,8 +254,6 @@ def _across(solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of, carried_by,
     """Starts for a hand that touches the other arm: that arm's palm where
     ``carried_by`` says it rests (its forearm across in front of the body), then the hand
     reaching the touched site there, as it comes and head-on."""
-    m, d = solver.model, solver.data
-    out = []
     for c in cons:
         if not isinstance(c, cn.Place) or not isinstance(c.target, SitePos):
             continue
@@ -253,24 +261,34 @@ def _across(solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of, carried_by,
         if arm not in arms or held is None or held[0] not in arms or held[0] is arm:
             continue
         other, palm, at = held
-        q1 = seeded([(other, palm, solver.kinematics().value(at))])
-        d.qpos[:] = q1
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        target = d.site_xpos[solver.site_id(c.target.site)].copy()
-        head_on, rule = _head_on(solver, arm, c, cons), _facing_of(solver, c, cons)
-        for goal in [(target,)] + ([(target, head_on)] if head_on else []):
-            q = q1.copy()
-            sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(c.site)], *goal)
-            for j, v in (sol or {}).items():
-                q[m.jnt_qposadr[solver.joint_id(j)]] = v
-            if sol and rule is not None:
-                q = _aim_hand(solver, q, arm.wrist, c.site, target, rule)
-            out.append(q)
-        d.qpos[:] = q0
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        break
+        return _then_reach(solver, seeded([(other, palm, solver.kinematics().value(at))]),
+                           arm, c, cons, q0)  # fmt: skip
+    return []
+
+
+def _then_reach(solver: ik.Solver, q1: np.ndarray, arm: Arm, c: cn.Place, cons,
+                q0: np.ndarray) -> list[np.ndarray]:
+    """From ``q1``, where the other hand already holds ``c``'s target site, ``arm``
+    reaching that site as it comes and, for a fingertip, head-on. Leaves ``data`` on
+    ``q0``."""
+    m, d = solver.model, solver.data
+    out = []
+    d.qpos[:] = q1
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    target = d.site_xpos[solver.site_id(c.target.site)].copy()
+    head_on, rule = _head_on(solver, arm, c, cons), _facing_of(solver, c, cons)
+    for goal in [(target,)] + ([(target, head_on)] if head_on else []):
+        q = q1.copy()
+        sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(c.site)], *goal)
+        for j, v in (sol or {}).items():
+            q[m.jnt_qposadr[solver.joint_id(j)]] = v
+        if sol and rule is not None:
+            q = _aim_hand(solver, q, arm.wrist, c.site, target, rule)
+        out.append(q)
+    d.qpos[:] = q0
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
     return out
 
 

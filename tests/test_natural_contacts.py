@@ -71,9 +71,11 @@ def test_contact_is_met_naturally(solver, model, site, at, strong, weak):
 
 
 def test_hands_join_in_front_not_behind_the_back(solver, model):
-    """An index tip on the back of the other hand: head-on it is met only behind the back;
-    the hands join in front of the chest instead, the fingertip leaning
-    (``timeline.FACING_WIDEN``)."""
+    """An index tip on the back of the other hand: the generic starts meet it head-on only
+    behind the back; the hands join in front of the chest instead, the fingertip leaning
+    (``timeline.FACING_WIDEN``), at chest height with both elbows bent (a start of its own:
+    the other hand held palm down in the signing space, the fingertip coming down onto it;
+    without it they met at the belt, the other arm held out straight)."""
     held = held_posture(solver, "@I_TIP(s)", "@H_BACK(w)", INDEX, FLAT)
     d = mujoco.MjData(model)
     d.qpos[:] = held
@@ -82,5 +84,9 @@ def test_hands_join_in_front_not_behind_the_back(solver, model):
     forward = d.xmat[chest.id].reshape(3, 3)[:, 0]
     tip = d.site("I_TIP_R").xpos
     assert (tip - d.xpos[chest.id]) @ forward > 0.1, "the hands meet behind the chest"
+    low = 0.5 * (d.site("AB").xpos[2] + d.site("ST").xpos[2])
+    assert tip[2] > low, f"the hands meet {(low - tip[2]) * 1e3:.0f} mm below mid-chest"
     e = ergonomics(model, held)
     assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
+    for arm in (e.rula.left, e.rula.right):
+        assert arm.elbow_flexion > 60 * DEG, f"elbow {arm.side} {arm.elbow_flexion / DEG:.0f} deg"

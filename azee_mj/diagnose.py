@@ -28,7 +28,6 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik
 
-
 #: How deep two parts must pass into each other at a collision-free solution to be named
 #: as what blocks it [m]: deeper than the contact allowance.
 PASS_THROUGH = 2 * cn.CONTACT_ALLOWANCE
@@ -114,26 +113,34 @@ def _conflict(solver, problem, c, q0) -> Diagnosis | None:
 
 def _collision(solver, problem, c, q) -> Diagnosis | None:
     """Met with self-collision off: the two parts that solution drives deepest into each
-    other (or, if none, the two closest at ``q``)."""
+    other (or, if none goes deeper than ``PASS_THROUGH``, the two closest at ``q``)."""
     res = solver.solve(dataclasses.replace(problem, collide=False, natural=False), q)
     if not res.residuals[problem.constraints.index(c)].ok:
         return None
-    m, d = solver.model, solver.data
-    for x in (res.qpos, q):
-        d.qpos[:] = x
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_collision(m, d)
-        dist = d.contact.dist[: d.ncon]
-        if d.ncon and (x is q or dist.min() < -PASS_THROUGH):
-            break
-    else:
+    through = _deepest(solver, res.qpos)
+    if through is not None and through[0] > PASS_THROUGH:
+        depth, a, b = through
+        return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b} "
+                         f"(met only with them {depth * 1000:.0f} mm into each other)")
+    near = _deepest(solver, q)
+    if near is None:
         return Diagnosis(c.label, "collision", "blocked by self-collision")
-    i = int(np.argmin(dist))
+    _, a, b = near
+    return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b}")
+
+
+def _deepest(solver, q) -> tuple[float, str, str] | None:
+    """(depth [m], negative if apart; the two bodies) of the deepest contact MuJoCo finds
+    in posture ``q``, or None without any."""
+    m, d = solver.model, solver.data
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_collision(m, d)
+    if not d.ncon:
+        return None
+    i = int(np.argmin(d.contact.dist[: d.ncon]))
     a, b = (_name(m, mujoco.mjtObj.mjOBJ_BODY, m.geom_bodyid[g]) for g in d.contact.geom[i])
-    if x is q:
-        return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b}")
-    return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b} (met "
-                     f"only with them {-dist[i] * 1000:.0f} mm into each other)")  # fmt: skip
+    return -float(d.contact.dist[i]), a, b
 
 
 def _limit(solver, problem, c, q) -> Diagnosis | None:

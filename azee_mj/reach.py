@@ -224,8 +224,9 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             meeting = [(arm, c.site, centre + arm.out * gap),
                        (other, c.target.site, centre + other.out * gap)]
             joined = (arm, other, c, centre)
+    aimed = {h[0] for h in head_on}  # the arms that bring a fingertip in head-on
     if head_on:
-        head_on += [g for g in reach if g[0] not in {h[0] for h in head_on}]
+        head_on += [g for g in reach if g[0] not in aimed]
     seeds = [seeded(g) for g in (reach, meeting, head_on) if g]
     if meeting:
         # the placed hand above the other, both palms down
@@ -236,7 +237,7 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             if a.pron and a.pron in free:
                 stacked[m.jnt_qposadr[solver.joint_id(a.pron)]] = STACKED_PRONATION
         seeds.append(stacked)
-        (arm, other, c, centre), aimed = joined, [h[0] for h in head_on]
+        arm, other, c, centre = joined
         if arm in aimed:
             # a fingertip on the other hand: that hand held in the signing space first,
             # palm down, then the fingertip reaching it there head-on

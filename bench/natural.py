@@ -163,6 +163,14 @@ class Measure:
         self.hinge_q = self.m.jnt_qposadr[self.hinge]
         names = list(DEFAULT_MAP.sites)
         self.mirror_idx = np.array([names.index(mirror_name(n)) for n in names])
+        #: each hand's bodies: its palm's body and every body below it
+        self.hands = []
+        for palm in (self.site_body(f"PA_{s}") for s in "RL"):
+            under = {palm}
+            for b in range(palm + 1, self.m.nbody):  # MuJoCo numbers a parent before its children
+                if int(self.m.body_parentid[b]) in under:
+                    under.add(b)
+            self.hands.append(frozenset(under))
 
     def site_body(self, azee: str) -> int:
         sid = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, DEFAULT_MAP.sites[azee])
@@ -172,16 +180,7 @@ class Measure:
         """The bodies that touch as one with the body of site ``azee``, as the realizer
         counts them: its whole hand (the palm and the digits) if it is on a hand."""
         body = self.site_body(azee)
-        for palm in (self.site_body(f"PA_{s}") for s in "RL"):
-            hand = frozenset(b for b in range(self.m.nbody) if self._under(b, palm))
-            if body in hand:
-                return hand
-        return frozenset((body,))
-
-    def _under(self, b: int, root: int) -> bool:
-        while b > 0 and b != root:
-            b = int(self.m.body_parentid[b])
-        return b == root
+        return next((h for h in self.hands if body in h), frozenset((body,)))
 
     def contact_pair(self, site: str, at: str) -> tuple[frozenset[int], frozenset[int]]:
         """The two parts a placement of ``site`` at ``at`` brings together (on one hand,

@@ -226,6 +226,10 @@ class FrameRenderer:
         # The floor's mirror image of the signer (reflectance 0.1) cannot be seen from the
         # fixed cameras, and drawing it costs a whole extra pass of the scene.
         self.r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        # A context's first frame is not always its later frames bit for bit (software GL
+        # at some sizes: one pixel off, measured); drawn once here, a frame is the same
+        # whichever renderer draws it, first or not. This also compiles the shaders.
+        self.draw(self.model.qpos0, out=self._full)
 
     def draw(self, q: np.ndarray, items: Sequence[Marker] = (),
              out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
@@ -613,7 +617,6 @@ def _render_worker(job: _WorkerJob, slots, todo, done) -> None:
         with FrameRenderer(camera=job.camera, size=job.size, antialias=job.antialias) as fr:
             w, h = fr.render_size
             views = np.frombuffer(slots, np.uint8).reshape(WORKER_SLOTS, h, w, 3)
-            fr.draw(fr.model.qpos0, out=views[0])  # compiles the shaders before any frame
             done.send("up")
             while (task := todo.recv()) is not None:
                 j, slot, q, items = task

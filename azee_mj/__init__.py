@@ -9,4 +9,4 @@ from azee_mj.sites import DEFAULT_MAP, SignerMap
 
 __version__ = "0.1.0"
 
-__all__ = ["AzeeError", "DEFAULT_MAP", "MODEL_PATH", "SCENE_PATH", "SignerMap", "load_model"]
+__all__ = ["DEFAULT_MAP", "MODEL_PATH", "SCENE_PATH", "AzeeError", "SignerMap", "load_model"]

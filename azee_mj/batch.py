@@ -101,16 +101,19 @@ def summary_lines(output: str | os.PathLike, rollout: Rollout, fps: float) -> tu
     why each missed constraint missed (the first five)."""
     s = rollout.stats
     bad = [t for t in rollout.traces if not t.ok]
-    head = (f"{output}: {len(rollout.time)} frames at {fps:g} fps, {s.problems} IK "
-            f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
-            f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within "
-            f"tolerance")  # fmt: skip
+    head = (
+        f"{output}: {len(rollout.time)} frames at {fps:g} fps, {s.problems} IK "
+        f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
+        f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within "
+        f"tolerance"
+    )
     more = (f"  ... and {len(bad) - 5} more (see --report)",) if len(bad) > 5 else ()
     return (head, *(f"  {t.describe()}" for t in bad[:5]), *more)
 
 
-def read_score(path: str | os.PathLike,
-               lexicon: Iterable[str | os.PathLike] | Lexicon = ()) -> Score:  # fmt: skip
+def read_score(
+    path: str | os.PathLike, lexicon: Iterable[str | os.PathLike] | Lexicon = ()
+) -> Score:
     """The score at ``path``: a ``SCORE.json``, or an ``EXPR.azee`` compiled with the sign
     directories ``lexicon`` (searched before the bundled lexicon)."""
     from azee_mj.score import load_score
@@ -123,18 +126,23 @@ def read_score(path: str | os.PathLike,
 
 
 def realize_file(
-    job: Job, *, fps: float, mode: str, solver: Solver | None = None,
+    job: Job,
+    *,
+    fps: float,
+    mode: str,
+    solver: Solver | None = None,
     lexicon: Iterable[str | os.PathLike] | Lexicon = (),
     progress: Callable[[float], None] | None = None,
-) -> Rollout:  # fmt: skip
+) -> Rollout:
     """Realize ``job.score`` and write its rollout (and report) atomically; the rollout.
     Raises :class:`AzeeError` for a bad score or an output that may not be written."""
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
     from azee_mj.timeline import realize
 
-    rollout = realize(read_score(job.score, lexicon), fps=fps, mode=mode, solver=solver,
-                      progress=progress)  # fmt: skip
+    rollout = realize(
+        read_score(job.score, lexicon), fps=fps, mode=mode, solver=solver, progress=progress
+    )
     save_rollout(job.output, rollout, inputs=(job.score,))
     if job.report is not None:
         save_json(job.report, rollout.report(), inputs=(job.score, job.output))
@@ -143,8 +151,15 @@ def realize_file(
 
 _SOLVER: Solver | None = None
 _LEXICON: Lexicon | tuple[str, ...] = ()
-_PRELOAD = ("azee_mj.azee", "azee_mj.batch", "azee_mj.files", "azee_mj.rollout_io",
-            "azee_mj.schedule", "azee_mj.score", "azee_mj.timeline")  # fmt: skip
+_PRELOAD = (
+    "azee_mj.azee",
+    "azee_mj.batch",
+    "azee_mj.files",
+    "azee_mj.rollout_io",
+    "azee_mj.schedule",
+    "azee_mj.score",
+    "azee_mj.timeline",
+)
 
 
 def _prepare(lexicon: Sequence[str]) -> None:
@@ -182,11 +197,16 @@ def _run(job: Job, fps: float, mode: str) -> Outcome:
     except AzeeError as e:
         msg = str(e)
         error = msg if msg.startswith(str(job.score)) else f"{job.score}: {msg}"
-        return Outcome(job, error=error, wall=time.perf_counter() - t0,
-                       cpu=time.process_time() - c0)  # fmt: skip
-    return Outcome(job, summary_lines(job.output, rollout, fps),
-                   missed=sum(not t.ok for t in rollout.traces),
-                   wall=time.perf_counter() - t0, cpu=time.process_time() - c0)  # fmt: skip
+        return Outcome(
+            job, error=error, wall=time.perf_counter() - t0, cpu=time.process_time() - c0
+        )
+    return Outcome(
+        job,
+        summary_lines(job.output, rollout, fps),
+        missed=sum(not t.ok for t in rollout.traces),
+        wall=time.perf_counter() - t0,
+        cpu=time.process_time() - c0,
+    )
 
 
 def _size(path: Path) -> int:
@@ -237,8 +257,7 @@ def realize_many(
     else:
         ctx = multiprocessing.get_context("spawn")
     before = set(multiprocessing.active_children())
-    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
-                               initargs=(lex,))  # fmt: skip
+    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(lex,))
     try:
         # Largest scores first, so that no long one starts last while the other workers idle.
         order = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i].score))

@@ -110,8 +110,9 @@ def check_poses(
             b1, b2 = body[model.geom_bodyid[c.geom1]], body[model.geom_bodyid[c.geom2]]
             if depth > penetration_limit and (b1, b2) not in ok and (b2, b1) not in ok:
                 pens.append(Penetration(f, _name(model, c.geom1), _name(model, c.geom2), depth))
-    return PoseReport(len(q), tuple(pens), tuple(viol), max_depth,
-                      tuple(int(f) for f in np.flatnonzero(~finite)))  # fmt: skip
+    return PoseReport(
+        len(q), tuple(pens), tuple(viol), max_depth, tuple(int(f) for f in np.flatnonzero(~finite))
+    )
 
 
 def summary(report: PoseReport, fps: float | None = None) -> str:
@@ -121,8 +122,10 @@ def summary(report: PoseReport, fps: float | None = None) -> str:
     worst = float(report.max_depth.max(initial=0.0))
     lines.append(f"deepest contact: {worst * 1000:.2f} mm")
     if report.nonfinite:
-        lines.append(f"{len(report.nonfinite)} frame(s) with a non-finite posture (NaN or "
-                     f"infinity), first at {when(report.nonfinite[0])}")  # fmt: skip
+        lines.append(
+            f"{len(report.nonfinite)} frame(s) with a non-finite posture (NaN or "
+            f"infinity), first at {when(report.nonfinite[0])}"
+        )
     if report.penetrations:
         lines.append(f"{len(report.penetrations)} penetration(s) over the limit, e.g.:")
         for p in sorted(report.penetrations, key=lambda p: -p.depth)[:5]:

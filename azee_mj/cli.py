@@ -32,8 +32,9 @@ EXIT_OK, EXIT_FINDINGS, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 
 
-def _outputs(args, outputs: tuple[str, ...], inputs: tuple[str, ...],
-             directory: bool = False) -> None:  # fmt: skip
+def _outputs(
+    args, outputs: tuple[str, ...], inputs: tuple[str, ...], directory: bool = False
+) -> None:
     """The one output check of every writing command, before any work: each option named in
     ``outputs`` (e.g. ``output``, ``report``) that is set must be writable and differ from
     every input option named in ``inputs`` and from every sign file of the ``--lexicon``
@@ -51,8 +52,13 @@ def _outputs(args, outputs: tuple[str, ...], inputs: tuple[str, ...],
 
 def _lexicon_files(args) -> list[Path]:
     """The sign files of the ``--lexicon`` directories (inputs no output may replace)."""
-    return [p for d in getattr(args, "lexicon", None) or () if os.path.isdir(d)
-            for p in Path(d).iterdir() if p.suffix in (".json", ".azee")]  # fmt: skip
+    return [
+        p
+        for d in getattr(args, "lexicon", None) or ()
+        if os.path.isdir(d)
+        for p in Path(d).iterdir()
+        if p.suffix in (".json", ".azee")
+    ]
 
 
 def _cmd_sites(args) -> int:
@@ -90,9 +96,13 @@ def _score_arg(path: str | None, args) -> str | None:
 
 
 def _add_lexicon(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--lexicon", action="append", metavar="DIR",
-                   help="a directory of signs (NAME.json, NAME.azee) for .azee input, searched "
-                   "before the bundled lexicon; repeatable")  # fmt: skip
+    p.add_argument(
+        "--lexicon",
+        action="append",
+        metavar="DIR",
+        help="a directory of signs (NAME.json, NAME.azee) for .azee input, searched "
+        "before the bundled lexicon; repeatable",
+    )
 
 
 def _cmd_compile(args) -> int:
@@ -114,8 +124,10 @@ def _cmd_compile(args) -> int:
     out = Path(args.output)
     with atomic_path(out, inputs=(args.input,) if args.input else ()) as tmp:
         tmp.write_text(text, encoding="utf-8")
-    print(f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
-          file=sys.stderr)  # fmt: skip
+    print(
+        f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
+        file=sys.stderr,
+    )
     return 0
 
 
@@ -181,8 +193,12 @@ class _Progress:
         if self.on:
             n = int(30 * fraction)
             end = "\n" if fraction >= 1.0 else ""
-            print(f"\r{self.label} [{'#' * n}{'.' * (30 - n)}] {fraction:4.0%}", end=end,
-                  file=sys.stderr, flush=True)  # fmt: skip
+            print(
+                f"\r{self.label} [{'#' * n}{'.' * (30 - n)}] {fraction:4.0%}",
+                end=end,
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def _cmd_realize(args) -> int:
@@ -248,8 +264,9 @@ def _realize_many(args) -> int:
             print(f"azee-mj: error: {printable(o.error)}", file=sys.stderr, flush=True)
         bar(n / len(jobs))
 
-    outcomes = realize_many(jobs, fps=args.fps, mode=args.mode, workers=args.jobs,
-                            lexicon=lexicon, on_done=done)  # fmt: skip
+    outcomes = realize_many(
+        jobs, fps=args.fps, mode=args.mode, workers=args.jobs, lexicon=lexicon, on_done=done
+    )
     if not all(o.ok for o in outcomes):
         return EXIT_BAD_INPUT
     return EXIT_FINDINGS if args.strict and any(o.missed for o in outcomes) else EXIT_OK
@@ -276,8 +293,9 @@ def load_clip(
         rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
         return Clip.from_rollout(rollout, s, path.stem)
     if path.suffix.lower() != ".npz":
-        raise AzeeError(f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix "
-                        f"{path.suffix!r}")  # fmt: skip
+        raise AzeeError(
+            f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix {path.suffix!r}"
+        )
     r = load_rollout(path, load_model().nq)
     given = sc.load_score(Path(score)) if score else None
     sched = schedule_of(given) if given is not None else {}
@@ -291,16 +309,19 @@ def _clip(args, progress: bool = True):
         check_fps(args.fps)
     realize_fps = args.fps or 50.0
     score = _score_arg(getattr(args, "score", None), args)
-    return load_clip(_score_arg(args.input, args), score=score, fps=realize_fps,
-                     progress=_Progress("realize") if progress else None)  # fmt: skip
+    return load_clip(
+        _score_arg(args.input, args),
+        score=score,
+        fps=realize_fps,
+        progress=_Progress("realize") if progress else None,
+    )
 
 
 def _cmd_preview(args) -> int:
     from azee_mj.viewer import preview
 
     clip = _clip(args)
-    n = preview(clip, targets=not args.no_targets, max_frames=args.max_frames,
-                camera=args.camera)  # fmt: skip
+    n = preview(clip, targets=not args.no_targets, max_frames=args.max_frames, camera=args.camera)
     if args.max_frames is not None:
         print(f"preview: {n} viewer updates")
     return 0
@@ -313,9 +334,18 @@ def _cmd_render(args) -> int:
     check_render_options(args.output, size, args.fps, args.time, args.jobs)  # before realizing
     _outputs(args, ("output",), ("input", "score"))
     clip = _clip(args)
-    out = render(clip, args.output, camera=args.camera, size=size, fps=args.fps,
-                 time=args.time, targets=args.targets, antialias=not args.no_antialias,
-                 workers=args.jobs, progress=_Progress("render"))  # fmt: skip
+    out = render(
+        clip,
+        args.output,
+        camera=args.camera,
+        size=size,
+        fps=args.fps,
+        time=args.time,
+        targets=args.targets,
+        antialias=not args.no_antialias,
+        workers=args.jobs,
+        progress=_Progress("render"),
+    )
     print(f"{out}: written")
     return 0
 
@@ -327,8 +357,9 @@ def _cmd_report(args) -> int:
     fps = 50.0 if args.fps is None else check_fps(args.fps)
     as_dir = args.output.endswith(("/", os.sep)) or Path(args.output).is_dir()
     _outputs(args, ("output",), ("score",), directory=as_dir)
-    paths = write_report(_score_arg(args.score, args), args.output, fps=fps,
-                         progress=_Progress("report"))  # fmt: skip
+    paths = write_report(
+        _score_arg(args.score, args), args.output, fps=fps, progress=_Progress("report")
+    )
     for p in paths:
         print(f"{p}: written")
     return 0
@@ -340,8 +371,9 @@ def _cmd_export(args) -> int:
 
     check_fps(args.fps)
     _outputs(args, ("output",), ("input", "score"))
-    out = export(_score_arg(args.input, args), args.output,
-                 score=_score_arg(args.score, args), fps=args.fps)
+    out = export(
+        _score_arg(args.input, args), args.output, score=_score_arg(args.score, args), fps=args.fps
+    )
     print(f"{out}: written")
     return 0
 
@@ -363,8 +395,9 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("input", nargs="?", metavar="EXPR.azee", help="the expression file")
     a.add_argument("-e", metavar="TEXT", help="the expression as text instead of a file")
     a.add_argument("-o", "--output", help="SCORE.json (default: standard output)")
-    a.add_argument("--strong-side", choices=["R", "L"], default="R",
-                   help="the score's strong side (default R)")
+    a.add_argument(
+        "--strong-side", choices=["R", "L"], default="R", help="the score's strong side (default R)"
+    )
     _add_lexicon(a)
     a.set_defaults(func=_cmd_compile)
 
@@ -374,35 +407,58 @@ def build_parser() -> argparse.ArgumentParser:
     u.set_defaults(func=_cmd_rules)
 
     r = sub.add_parser("realize", help="realize a score to a rollout .npz (or many to DIR/)")
-    r.add_argument("score", nargs="+", metavar="SCORE",
-                   help="SCORE.json (azee-score version 1) or EXPR.azee; several, or a "
-                   "directory of them (*.json, *.azee), are realized in parallel to -o DIR/")
-    r.add_argument("-o", "--output", required=True,
-                   help="OUT.npz, or an existing DIR/ for NAME.npz of each score")
+    r.add_argument(
+        "score",
+        nargs="+",
+        metavar="SCORE",
+        help="SCORE.json (azee-score version 1) or EXPR.azee; several, or a "
+        "directory of them (*.json, *.azee), are realized in parallel to -o DIR/",
+    )
+    r.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="OUT.npz, or an existing DIR/ for NAME.npz of each score",
+    )
     r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
-    r.add_argument("--mode", choices=["multitrack", "flattened"], default="multitrack",
-                   help="blocks per articulator track (default) or the 2018 flattened method")
-    r.add_argument("--report", help="also write residuals and timings to REPORT.json "
-                   "(an existing DIR/ for several scores)")
-    r.add_argument("--strict", action="store_true",
-                   help="exit 1 if any constraint is not met (default: 0, and say why)")
-    r.add_argument("--jobs", type=int, help="processes for several scores (default: one per "
-                   "usable core)")
+    r.add_argument(
+        "--mode",
+        choices=["multitrack", "flattened"],
+        default="multitrack",
+        help="blocks per articulator track (default) or the 2018 flattened method",
+    )
+    r.add_argument(
+        "--report",
+        help="also write residuals and timings to REPORT.json "
+        "(an existing DIR/ for several scores)",
+    )
+    r.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 1 if any constraint is not met (default: 0, and say why)",
+    )
+    r.add_argument(
+        "--jobs", type=int, help="processes for several scores (default: one per usable core)"
+    )
     _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)
 
     c = sub.add_parser("check", help="check a rollout for penetrations and range violations")
     c.add_argument("rollout", help="ROLLOUT.npz written by 'azee-mj realize'")
-    c.add_argument("--score", help="the score it realizes (.json or .azee): also report "
-                   "constraint residuals")
+    c.add_argument(
+        "--score", help="the score it realizes (.json or .azee): also report constraint residuals"
+    )
     _add_lexicon(c)
     c.set_defaults(func=_cmd_check)
 
     from azee_mj.render import CAMERAS
 
     v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
-    v.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
+    v.add_argument(
+        "input",
+        metavar="SCORE|ROLLOUT",
+        help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz",
+    )
     v.add_argument("--score", help="the score of a ROLLOUT.npz, to draw its targets")
     _add_lexicon(v)
     v.add_argument("--fps", type=float, help="frames per second when realizing (default 50)")
@@ -412,33 +468,59 @@ def build_parser() -> argparse.ArgumentParser:
     v.set_defaults(func=_cmd_preview)
 
     w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
-    w.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
+    w.add_argument(
+        "input",
+        metavar="SCORE|ROLLOUT",
+        help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz",
+    )
     w.add_argument("-o", "--output", required=True, help="OUT.mp4, OUT.gif or OUT.png")
     _add_lexicon(w)
     w.add_argument("--score", help="the score of a ROLLOUT.npz (targets, contact sheet labels)")
     w.add_argument("--camera", choices=CAMERAS, default="front", help="camera (default front)")
     w.add_argument("--size", default="640x480", help="WxH in pixels (default 640x480)")
     w.add_argument("--fps", type=float, help="video frames per second (default: the rollout's)")
-    w.add_argument("--time", type=float, help="for .png: the frame at T seconds (default: a "
-                   "contact sheet of the key postures)")
+    w.add_argument(
+        "--time",
+        type=float,
+        help="for .png: the frame at T seconds (default: a contact sheet of the key postures)",
+    )
     w.add_argument("--targets", action="store_true", help="draw constraint targets")
-    w.add_argument("--no-antialias", action="store_true", help="no supersampling: about 1.5 "
-                   "times as fast in software GL, with jagged edges")
-    w.add_argument("--jobs", type=int, help="processes rendering video frames (default: 2 "
-                   "where 2 cores are usable, 1 for short videos)")
+    w.add_argument(
+        "--no-antialias",
+        action="store_true",
+        help="no supersampling: about 1.5 times as fast in software GL, with jagged edges",
+    )
+    w.add_argument(
+        "--jobs",
+        type=int,
+        help="processes rendering video frames (default: 2 "
+        "where 2 cores are usable, 1 for short videos)",
+    )
     w.set_defaults(func=_cmd_render)
 
-    e = sub.add_parser("export", help="export a score or rollout to .glb, .gltf, .bvh, .pose, "
-                       ".csv or a web player .html")
-    e.add_argument("input", metavar="SCORE|ROLLOUT",
-                   help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz")
-    e.add_argument("-o", "--output", required=True,
-                   help="OUT.glb, OUT.gltf, OUT.bvh, OUT.pose, OUT.csv or OUT.html")
+    e = sub.add_parser(
+        "export",
+        help="export a score or rollout to .glb, .gltf, .bvh, .pose, .csv or a web player .html",
+    )
+    e.add_argument(
+        "input",
+        metavar="SCORE|ROLLOUT",
+        help="SCORE.json or EXPR.azee (realized first) or ROLLOUT.npz",
+    )
+    e.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="OUT.glb, OUT.gltf, OUT.bvh, OUT.pose, OUT.csv or OUT.html",
+    )
     e.add_argument("--score", help="the score of a ROLLOUT.npz (the player shows its blocks)")
     _add_lexicon(e)
-    e.add_argument("--fps", type=float, default=50.0,
-                   help="frames per second when realizing a score (default 50)")
+    e.add_argument(
+        "--fps",
+        type=float,
+        default=50.0,
+        help="frames per second when realizing a score (default 50)",
+    )
     e.set_defaults(func=_cmd_export)
 
     h = sub.add_parser("report", help="HTML report (or PNG set) of a score's realization")
@@ -480,8 +562,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_TERMINATED
     except MemoryError:
         remove_temporaries()
-        print("azee-mj: error: out of memory; try a shorter score or a lower --fps",
-              file=sys.stderr)  # fmt: skip
+        print(
+            "azee-mj: error: out of memory; try a shorter score or a lower --fps", file=sys.stderr
+        )
         return EXIT_BAD_INPUT
     except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback only when asked
         remove_temporaries()
@@ -490,8 +573,11 @@ def main(argv: list[str] | None = None) -> int:
 
             traceback.print_exc()
         what = shorten(printable(f"{type(e).__name__}: {e}"), 200)
-        print(f"azee-mj: internal error ({what}); please report it with the command and its "
-              "input files (add --debug for the traceback)", file=sys.stderr)  # fmt: skip
+        print(
+            f"azee-mj: internal error ({what}); please report it with the command and its "
+            "input files (add --debug for the traceback)",
+            file=sys.stderr,
+        )
         return EXIT_INTERNAL
 
 

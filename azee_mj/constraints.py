@@ -116,10 +116,15 @@ class Look:
 
     def _orients(self) -> list[Orient]:
         return [
-            Orient(body, local, Rel.ALONG, Lin(((1.0, self.target), (-1.0, BodyOrigin(body)))),
-                   self.tol)
+            Orient(
+                body,
+                local,
+                Rel.ALONG,
+                Lin(((1.0, self.target), (-1.0, BodyOrigin(body)))),
+                self.tol,
+            )
             for body, local in self.eyes
-        ]  # fmt: skip
+        ]
 
     def rows(self, k: Kinematics):
         rows = [o.rows(k) for o in self._orients()]

@@ -43,20 +43,39 @@ class Diagnosis:
     detail: str
 
 
-def diagnose(solver: ik.Solver, problem: ik.IKProblem, result: ik.IKResult,
-             q0: np.ndarray, limb_root=None, only: str | None = None) -> tuple[Diagnosis, ...]:
+def diagnose(
+    solver: ik.Solver,
+    problem: ik.IKProblem,
+    result: ik.IKResult,
+    q0: np.ndarray,
+    limb_root=None,
+    only: str | None = None,
+) -> tuple[Diagnosis, ...]:
     """A :class:`Diagnosis` for each hard constraint of ``problem`` that ``result`` (solved
     from ``q0``) misses (only the one labelled ``only``, if given). ``limb_root(site)`` is
     the body where the limb carrying a model site starts (a clavicle for a hand site), or
     None: reach is measured from there."""
     out = []
-    missed = [(c, r) for c, r in zip(problem.constraints, result.residuals)
-              if not c.soft and not r.ok and only in (None, c.label)]  # fmt: skip
+    missed = [
+        (c, r)
+        for c, r in zip(problem.constraints, result.residuals)
+        if not c.soft and not r.ok and only in (None, c.label)
+    ]
     for c, r in missed:
-        d = (_reach(solver, c, result.qpos, limb_root) or _conflict(solver, problem, c, q0)
-             or _collision(solver, problem, c, result.qpos) or _limit(solver, problem, c, result.qpos))
-        out.append(d or Diagnosis(c.label, "minimum", "a local minimum of the solver (no limit, "
-                                  "reach or collision explains it)"))  # fmt: skip
+        d = (
+            _reach(solver, c, result.qpos, limb_root)
+            or _conflict(solver, problem, c, q0)
+            or _collision(solver, problem, c, result.qpos)
+            or _limit(solver, problem, c, result.qpos)
+        )
+        out.append(
+            d
+            or Diagnosis(
+                c.label,
+                "minimum",
+                "a local minimum of the solver (no limit, reach or collision explains it)",
+            )
+        )
     return tuple(out)
 
 
@@ -84,30 +103,47 @@ def _reach(solver, c, q, limb_root) -> Diagnosis | None:
     dist = float(np.linalg.norm(target - d.xpos[root]))
     if dist <= length:
         return None
-    return Diagnosis(c.label, "reach", f"out of reach by {(dist - length) * 1000:.0f} mm (the "
-                     f"target is {dist * 1000:.0f} mm from {_name(m, mujoco.mjtObj.mjOBJ_BODY, root)}, "
-                     f"the limb reaches {length * 1000:.0f} mm)")  # fmt: skip
+    return Diagnosis(
+        c.label,
+        "reach",
+        f"out of reach by {(dist - length) * 1000:.0f} mm (the "
+        f"target is {dist * 1000:.0f} mm from {_name(m, mujoco.mjtObj.mjOBJ_BODY, root)}, "
+        f"the limb reaches {length * 1000:.0f} mm)",
+    )
 
 
 def _conflict(solver, problem, c, q0) -> Diagnosis | None:
     """``c`` alone is met, and met with each other constraint but one."""
+
     def met_with(extra) -> bool:
-        keep = tuple(x for x in problem.constraints if x is c or x in extra or x.soft
-                     or isinstance(x, cn.JointTarget))  # fmt: skip
+        keep = tuple(
+            x
+            for x in problem.constraints
+            if x is c or x in extra or x.soft or isinstance(x, cn.JointTarget)
+        )
         res = solver.solve(dataclasses.replace(problem, constraints=keep, natural=False), q0)
         return res.residuals[keep.index(c)].ok
 
     block = c.label.rsplit("#", 1)[0]
     # (not the one it derives from: ``X:facing`` of placement ``X``)
-    others = sorted((o for o in problem.constraints if o is not c and not o.soft
-                     and not isinstance(o, cn.JointTarget) and not c.label.startswith(f"{o.label}:")),
-                    key=lambda o: o.label.rsplit("#", 1)[0] != block)  # its own block first
+    others = sorted(
+        (
+            o
+            for o in problem.constraints
+            if o is not c
+            and not o.soft
+            and not isinstance(o, cn.JointTarget)
+            and not c.label.startswith(f"{o.label}:")
+        ),
+        key=lambda o: o.label.rsplit("#", 1)[0] != block,
+    )  # its own block first
     if not others or not met_with(()):
         return None
     for o in others:
         if not met_with((o,)):
-            return Diagnosis(c.label, "conflict", f"conflicts with {o.label}: each can be met "
-                             "without the other")  # fmt: skip
+            return Diagnosis(
+                c.label, "conflict", f"conflicts with {o.label}: each can be met without the other"
+            )
     return None
 
 
@@ -120,8 +156,12 @@ def _collision(solver, problem, c, q) -> Diagnosis | None:
     through = _deepest(solver, res.qpos)
     if through is not None and through[0] > PASS_THROUGH:
         depth, a, b = through
-        return Diagnosis(c.label, "collision", f"blocked by a collision between {a} and {b} "
-                         f"(met only with them {depth * 1000:.0f} mm into each other)")
+        return Diagnosis(
+            c.label,
+            "collision",
+            f"blocked by a collision between {a} and {b} "
+            f"(met only with them {depth * 1000:.0f} mm into each other)",
+        )
     near = _deepest(solver, q)
     if near is None:
         return Diagnosis(c.label, "collision", "blocked by self-collision")
@@ -152,7 +192,7 @@ def _limit(solver, problem, c, q) -> Diagnosis | None:
     r, J = plan.rows()
     k = problem.constraints.index(c)
     blk = plan.items[k]
-    grad = J[blk.start:blk.stop].T @ r[blk.start:blk.stop]  # (nv,) d(|r|^2 / 2)/dq
+    grad = J[blk.start : blk.stop].T @ r[blk.start : blk.stop]  # (nv,) d(|r|^2 / 2)/dq
     best = None
     for dof in plan.free:
         lo, hi = solver.lower[dof], solver.upper[dof]
@@ -166,5 +206,9 @@ def _limit(solver, problem, c, q) -> Diagnosis | None:
     _, dof, side = best
     j = m.dof_jntid[dof]
     lim = np.degrees(m.jnt_range[j][0 if side == "lower" else 1])
-    return Diagnosis(c.label, "limit", f"stopped by the {side} limit of joint "
-                     f"{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)} ({lim:.0f} deg)")  # fmt: skip
+    return Diagnosis(
+        c.label,
+        "limit",
+        f"stopped by the {side} limit of joint "
+        f"{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)} ({lim:.0f} deg)",
+    )

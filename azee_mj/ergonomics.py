@@ -60,26 +60,52 @@ _DEG = np.pi / 180.0
 
 # RULA Table A (McAtamney and Corlett 1993): rows upper arm 1-6 x lower arm 1-3, columns
 # wrist 1-4 x wrist twist 1-2.
-_TABLE_A = np.array([
-    [1, 2, 2, 2, 2, 3, 3, 3], [2, 2, 2, 2, 3, 3, 3, 3], [2, 3, 3, 3, 3, 3, 4, 4],
-    [2, 3, 3, 3, 3, 4, 4, 4], [3, 3, 3, 3, 3, 4, 4, 4], [3, 4, 4, 4, 4, 4, 5, 5],
-    [3, 3, 4, 4, 4, 4, 5, 5], [3, 4, 4, 4, 4, 4, 5, 5], [4, 4, 4, 4, 4, 5, 5, 5],
-    [4, 4, 4, 4, 4, 5, 5, 5], [4, 4, 4, 4, 4, 5, 5, 5], [4, 4, 4, 5, 5, 5, 6, 6],
-    [5, 5, 5, 5, 5, 6, 6, 7], [5, 6, 6, 6, 6, 7, 7, 7], [6, 6, 6, 7, 7, 7, 7, 8],
-    [7, 7, 7, 7, 7, 8, 8, 9], [8, 8, 8, 8, 8, 9, 9, 9], [9, 9, 9, 9, 9, 9, 9, 9],
-])  # fmt: skip
+_TABLE_A = np.array(
+    [
+        [1, 2, 2, 2, 2, 3, 3, 3],
+        [2, 2, 2, 2, 3, 3, 3, 3],
+        [2, 3, 3, 3, 3, 3, 4, 4],
+        [2, 3, 3, 3, 3, 4, 4, 4],
+        [3, 3, 3, 3, 3, 4, 4, 4],
+        [3, 4, 4, 4, 4, 4, 5, 5],
+        [3, 3, 4, 4, 4, 4, 5, 5],
+        [3, 4, 4, 4, 4, 4, 5, 5],
+        [4, 4, 4, 4, 4, 5, 5, 5],
+        [4, 4, 4, 4, 4, 5, 5, 5],
+        [4, 4, 4, 4, 4, 5, 5, 5],
+        [4, 4, 4, 5, 5, 5, 6, 6],
+        [5, 5, 5, 5, 5, 6, 6, 7],
+        [5, 6, 6, 6, 6, 7, 7, 7],
+        [6, 6, 6, 7, 7, 7, 7, 8],
+        [7, 7, 7, 7, 7, 8, 8, 9],
+        [8, 8, 8, 8, 8, 9, 9, 9],
+        [9, 9, 9, 9, 9, 9, 9, 9],
+    ]
+)
 # RULA Table B: rows neck 1-6, columns trunk 1-6 x legs 1-2.
-_TABLE_B = np.array([
-    [1, 3, 2, 3, 3, 4, 5, 5, 6, 6, 7, 7], [2, 3, 2, 3, 4, 5, 5, 5, 6, 7, 7, 7],
-    [3, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7, 7], [5, 5, 5, 6, 6, 7, 7, 7, 7, 7, 8, 8],
-    [7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8], [8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9],
-])  # fmt: skip
+_TABLE_B = np.array(
+    [
+        [1, 3, 2, 3, 3, 4, 5, 5, 6, 6, 7, 7],
+        [2, 3, 2, 3, 4, 5, 5, 5, 6, 7, 7, 7],
+        [3, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7, 7],
+        [5, 5, 5, 6, 6, 7, 7, 7, 7, 7, 8, 8],
+        [7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8],
+        [8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9],
+    ]
+)
 # RULA Table C: rows score A 1-8+ (with muscle and force), columns score B 1-7+.
-_TABLE_C = np.array([
-    [1, 2, 3, 3, 4, 5, 5], [2, 2, 3, 4, 4, 5, 5], [3, 3, 3, 4, 4, 5, 6],
-    [3, 3, 3, 4, 5, 6, 6], [4, 4, 4, 5, 6, 7, 7], [4, 4, 5, 6, 6, 7, 7],
-    [5, 5, 6, 6, 7, 7, 7], [5, 5, 6, 7, 7, 7, 7],
-])  # fmt: skip
+_TABLE_C = np.array(
+    [
+        [1, 2, 3, 3, 4, 5, 5],
+        [2, 2, 3, 4, 4, 5, 5],
+        [3, 3, 3, 4, 4, 5, 6],
+        [3, 3, 3, 4, 5, 6, 6],
+        [4, 4, 4, 5, 6, 7, 7],
+        [4, 4, 5, 6, 6, 7, 7],
+        [5, 5, 6, 6, 7, 7, 7],
+        [5, 5, 6, 7, 7, 7, 7],
+    ]
+)
 
 
 def table_a(upper_arm: int, lower_arm: int, wrist: int, wrist_twist: int) -> int:
@@ -181,8 +207,10 @@ class Ergonomics:
     def elbows_ok(self) -> bool:
         """The issue's rule: an elbow rises above its shoulder only when its hand is at or
         above the eyes."""
-        return all(a.elbow_above_shoulder <= 0.0 or a.hand_above_eyes >= 0.0
-                   for a in (self.right, self.left))  # fmt: skip
+        return all(
+            a.elbow_above_shoulder <= 0.0 or a.hand_above_eyes >= 0.0
+            for a in (self.right, self.left)
+        )
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -277,8 +305,9 @@ def _rula_arm(p: _Pose, side: str, trunk: np.ndarray, score_b: int) -> RulaArm:
     twist = 1 if frac <= 0.5 else 2
 
     a = table_a(ua, la, w, twist)
-    return RulaArm(side, ua, la, w, twist, a, table_c(a, score_b), elev, abd, shoulder, elbow,
-                   flex, dev, frac)  # fmt: skip
+    return RulaArm(
+        side, ua, la, w, twist, a, table_c(a, score_b), elev, abd, shoulder, elbow, flex, dev, frac
+    )
 
 
 def ergonomics(model: mujoco.MjModel, qpos, signer_map: SignerMap = DEFAULT_MAP) -> Ergonomics:
@@ -294,14 +323,22 @@ def ergonomics(model: mujoco.MjModel, qpos, signer_map: SignerMap = DEFAULT_MAP)
     hf = trunk @ h_fwd
     n_twist = float(np.arctan2(hf[1], hf[0]))
 
-    neck = (1 if n_flex <= 10 * _DEG else 2 if n_flex <= 20 * _DEG else 3)
+    neck = 1 if n_flex <= 10 * _DEG else 2 if n_flex <= 20 * _DEG else 3
     if n_flex < -5 * _DEG:
         neck = 4
     neck += int(abs(n_twist) > 10 * _DEG) + int(abs(n_lat) > 10 * _DEG)
     if t_flex < -5 * _DEG:
         tr = 2
     else:
-        tr = 1 if t_flex <= 5 * _DEG else 2 if t_flex <= 20 * _DEG else 3 if t_flex <= 60 * _DEG else 4
+        tr = (
+            1
+            if t_flex <= 5 * _DEG
+            else 2
+            if t_flex <= 20 * _DEG
+            else 3
+            if t_flex <= 60 * _DEG
+            else 4
+        )
     tr += int(abs(t_twist) > 10 * _DEG) + int(abs(t_lat) > 10 * _DEG)
     legs = 1
     b = table_b(neck, tr, legs)
@@ -309,14 +346,24 @@ def ergonomics(model: mujoco.MjModel, qpos, signer_map: SignerMap = DEFAULT_MAP)
 
     eyes_z = 0.5 * (p.origin("eye_L")[2] + p.origin("eye_R")[2])
     heights = {
-        s: ArmHeights(s, float(p.origin(f"f_arm_{s}")[2] - p.origin(f"arm_{s}")[2]),
-                      float(p.site(f"PA_{s}")[2] - eyes_z))
+        s: ArmHeights(
+            s,
+            float(p.origin(f"f_arm_{s}")[2] - p.origin(f"arm_{s}")[2]),
+            float(p.site(f"PA_{s}")[2] - eyes_z),
+        )
         for s in SIDES
-    }  # fmt: skip
+    }
     return Ergonomics(
-        trunk_angle=_angle(t_up, world_up), trunk_flexion=t_flex, trunk_side_bend=t_lat,
-        trunk_twist=t_twist, head_angle=_angle(h_up, world_up),
+        trunk_angle=_angle(t_up, world_up),
+        trunk_flexion=t_flex,
+        trunk_side_bend=t_lat,
+        trunk_twist=t_twist,
+        head_angle=_angle(h_up, world_up),
         gaze_deviation=_angle(h_fwd, np.array([1.0, 0.0, 0.0])),
-        neck_flexion=n_flex, neck_side_bend=n_lat, neck_twist=n_twist,
-        right=heights["R"], left=heights["L"], rula=rula,
-    )  # fmt: skip
+        neck_flexion=n_flex,
+        neck_side_bend=n_lat,
+        neck_twist=n_twist,
+        right=heights["R"],
+        left=heights["L"],
+        rula=rula,
+    )

@@ -38,7 +38,9 @@ class OutputError(AzeeError):
 MAX_SHOWN = 80
 
 # C0 / C1 controls, DEL, and the bidirectional and line-separator marks a terminal obeys.
-_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+_CONTROL = re.compile(
+    "[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]"
+)
 #: Longest message printed [characters].
 MAX_MESSAGE = 1000
 _LONG_RUN = re.compile(rf"[^\s:;,']{{{MAX_SHOWN + 1},}}")
@@ -47,6 +49,7 @@ _LONG_RUN = re.compile(rf"[^\s:;,']{{{MAX_SHOWN + 1},}}")
 def printable(text: str) -> str:
     """``text`` with control characters and terminal escapes written as ``\\xNN`` /
     ``\\uNNNN`` (a message stays one line and cannot drive the terminal)."""
+
     def esc(m: re.Match) -> str:
         c = ord(m.group())
         return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"

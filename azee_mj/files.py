@@ -42,8 +42,9 @@ def _shown(path) -> str:
     return shorten(str(path), 200)
 
 
-def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = (),
-                 directory: bool = False) -> Path:  # fmt: skip
+def check_output(
+    path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = (), directory: bool = False
+) -> Path:
     """The file ``path`` will replace (symlinks resolved), after checking it may be written;
     raise :class:`~azee_mj.errors.OutputError` (one line) otherwise.
 
@@ -68,13 +69,16 @@ def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = 
         if stat.S_ISDIR(st.st_mode):
             raise OutputError(f"{shown}: is a directory; give a file name")
         if not stat.S_ISREG(st.st_mode):
-            raise OutputError(f"{shown}: exists and is not a regular file (a device, fifo or "
-                              "socket); refusing to replace it")  # fmt: skip
+            raise OutputError(
+                f"{shown}: exists and is not a regular file (a device, fifo or "
+                "socket); refusing to replace it"
+            )
         for i in inputs:
             with contextlib.suppress(OSError):
                 if os.path.samefile(i, target):
-                    raise OutputError(f"{shown}: is also an input ({_shown(i)}); "
-                                      "write to another file")  # fmt: skip
+                    raise OutputError(
+                        f"{shown}: is also an input ({_shown(i)}); write to another file"
+                    )
     parent = target.parent
     if not parent.exists():
         raise OutputError(f"{shown}: the directory {_shown(parent)} does not exist")
@@ -96,13 +100,15 @@ def check_output_dir(path: str | os.PathLike) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str = "",
-                inputs: Iterable[str | os.PathLike] = ()):  # fmt: skip
+def atomic_path(
+    path: str | os.PathLike, suffix: str = "", inputs: Iterable[str | os.PathLike] = ()
+):
     """Yield a temporary path beside ``path`` (checked with :func:`check_output`); move it
     onto ``path`` (through a symlink) only on success, remove it otherwise."""
     target = check_output(path, inputs)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix or target.suffix,
-                               dir=target.parent)  # fmt: skip
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{target.name}.", suffix=suffix or target.suffix, dir=target.parent
+    )
     _PENDING.add(tmp)
     try:
         os.close(fd)
@@ -143,15 +149,18 @@ def install_signal_handlers() -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray],
-             inputs: Iterable[str | os.PathLike] = ()) -> None:  # fmt: skip
+def save_npz(
+    path: str | os.PathLike, arrays: dict[str, np.ndarray], inputs: Iterable[str | os.PathLike] = ()
+) -> None:
     """Write numeric / fixed-width text arrays to ``path`` as a compressed ``.npz`` (loads
     with ``np.load(..., allow_pickle=False)``); the same arrays always give the same bytes."""
     for k, v in arrays.items():
         if np.asarray(v).dtype == object:
             raise TypeError(f"array {k!r} has dtype object; it would need pickle")
-    with atomic_path(path, ".npz", inputs) as tmp, zipfile.ZipFile(
-            tmp, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf:  # fmt: skip
+    with (
+        atomic_path(path, ".npz", inputs) as tmp,
+        zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as zf,
+    ):
         for k, v in arrays.items():
             # A fixed timestamp: the same arrays give the same bytes (np.savez stamps now).
             info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))

@@ -170,6 +170,7 @@ NATURAL_STEP = 0.2
 #: Restarts from the seeder's starts between two generic (natural, random) ones.
 SEEDS_PER_GENERIC = 4
 
+
 class Solver:
     """Solves :class:`IKProblem` s on one model.
 
@@ -246,17 +247,26 @@ class Solver:
     def set_naturalness(self, naturalness: Naturalness | None) -> None:
         """Prefer the most natural posture by ``naturalness`` (None: the first reached)."""
         self.naturalness = naturalness
-        self.effort_dofs = (np.flatnonzero(naturalness.strength > 0) if naturalness is not None
-                            else np.zeros(0, int))  # fmt: skip
+        self.effort_dofs = (
+            np.flatnonzero(naturalness.strength > 0)
+            if naturalness is not None
+            else np.zeros(0, int)
+        )
         self.effort = Effort(self.model, self.effort_dofs)
         edof = self.effort.dofs
         #: The compiled core's naturalness arguments (see ``Plan``): effort dofs, their
         #: scales, comfort weights, neutral posture and the dofs' ancestry.
-        self.natural_terms = None if naturalness is None else (
-            edof.astype(np.int32), np.sqrt(naturalness.effort_weight) / naturalness.strength[edof],
-            np.ascontiguousarray(naturalness.comfort, float),
-            np.ascontiguousarray(naturalness.neutral, float), self.effort.anc_u8,
-        )  # fmt: skip
+        self.natural_terms = (
+            None
+            if naturalness is None
+            else (
+                edof.astype(np.int32),
+                np.sqrt(naturalness.effort_weight) / naturalness.strength[edof],
+                np.ascontiguousarray(naturalness.comfort, float),
+                np.ascontiguousarray(naturalness.neutral, float),
+                self.effort.anc_u8,
+            )
+        )
 
     # -- names ------------------------------------------------------------------------
     def site_id(self, name: str) -> int:
@@ -274,8 +284,11 @@ class Solver:
         if info is None:
             j = self.joint_id(name)
             m = self.model
-            info = (int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]),
-                    bool(m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE))  # fmt: skip
+            info = (
+                int(m.jnt_qposadr[j]),
+                int(m.jnt_dofadr[j]),
+                bool(m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE),
+            )
             self._joint_info[name] = info
         return info
 
@@ -379,8 +392,9 @@ class Solver:
         with ``converged=False``.
         """
         t0 = time.perf_counter()
-        q_start = np.clip(self.natural if q0 is None else np.asarray(q0, float),
-                          self.lower, self.upper)  # fmt: skip
+        q_start = np.clip(
+            self.natural if q0 is None else np.asarray(q0, float), self.lower, self.upper
+        )
         cons = problem.constraints
         plan = self.plan(problem)
         free = plan.free
@@ -434,10 +448,15 @@ class Solver:
         hard = [r for r, c in zip(residuals, cons) if not c.soft]
         converged = all(r.ok for r in hard) and depth <= PENETRATION_LIMIT
         result = IKResult(
-            qpos=q, converged=converged, residuals=residuals, penetration=depth,
-            iterations=iters, restarts=attempt, time=time.perf_counter() - t0,
+            qpos=q,
+            converged=converged,
+            residuals=residuals,
+            penetration=depth,
+            iterations=iters,
+            restarts=attempt,
+            time=time.perf_counter() - t0,
             history=np.asarray(history),
-        )  # fmt: skip
+        )
         if self.on_solve is not None:
             self.on_solve(problem, result)
         return result
@@ -490,10 +509,17 @@ class Solver:
         if self.naturalness is None or not mov.size:
             return q, 0.0, 0
         q_out, nat, it, hist = plan.core.polish(
-            np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
-            mov.astype(np.int32), float(stop), plan.collide, NATURAL_ITER, NATURAL_STEP,
-            NULL_TOL, MAX_STEP,
-        )  # fmt: skip
+            np.ascontiguousarray(q, float),
+            plan.lower[free],
+            plan.upper[free],
+            mov.astype(np.int32),
+            float(stop),
+            plan.collide,
+            NATURAL_ITER,
+            NATURAL_STEP,
+            NULL_TOL,
+            MAX_STEP,
+        )
         history.extend(hist)
         return np.frombuffer(q_out).copy(), nat, it
 
@@ -512,8 +538,9 @@ class Solver:
         # A problem with seeds of its own (the realizer's) has its starts chosen already.
         ask = self.seeder is not None and not problem.seeds
         seeds = self.seeder(self, problem, q_start) if ask else ()
-        generic = ((q, False) for q in
-                   itertools.islice(self._generic_starts(q_start, free), restarts - 1))
+        generic = (
+            (q, False) for q in itertools.islice(self._generic_starts(q_start, free), restarts - 1)
+        )
         for k, q in enumerate(seeds, 1):
             yield q, True
             if k % SEEDS_PER_GENERIC == 0:
@@ -549,10 +576,17 @@ class Solver:
         from the tolerances (``FAR_COST``, ``FAR_GAIN``)."""
         free = plan.free
         q_out, cost, done, it, met, hist = plan.core.lm(
-            np.ascontiguousarray(q, float), plan.lower[free], plan.upper[free],
-            self.dof_weight[free], np.ascontiguousarray(plan.prefer[free], float),
-            float(posture), float(stop), int(self.max_iter), plan.collide, early,
-        )  # fmt: skip
+            np.ascontiguousarray(q, float),
+            plan.lower[free],
+            plan.upper[free],
+            self.dof_weight[free],
+            np.ascontiguousarray(plan.prefer[free], float),
+            float(posture),
+            float(stop),
+            int(self.max_iter),
+            plan.collide,
+            early,
+        )
         history.extend(hist)
         return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met))
 
@@ -596,8 +630,10 @@ def _collision_pairs(m: mujoco.MjModel) -> np.ndarray:
     geoms = np.flatnonzero((m.geom_contype | m.geom_conaffinity) != 0)
     i, j = np.triu_indices(geoms.size, 1)
     g1, g2 = geoms[i], geoms[j]
-    ok = ((m.geom_contype[g1] & m.geom_conaffinity[g2]) |
-          (m.geom_contype[g2] & m.geom_conaffinity[g1])) != 0  # fmt: skip
+    ok = (
+        (m.geom_contype[g1] & m.geom_conaffinity[g2])
+        | (m.geom_contype[g2] & m.geom_conaffinity[g1])
+    ) != 0
     w1, w2 = m.body_weldid[m.geom_bodyid[g1]], m.body_weldid[m.geom_bodyid[g2]]
     ok &= w1 != w2
     if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT:
@@ -614,8 +650,9 @@ def _collision_pairs(m: mujoco.MjModel) -> np.ndarray:
     return np.ascontiguousarray(np.stack([a1[order], a2[order]], axis=1), np.int32)
 
 
-def _geom_clusters(m: mujoco.MjModel, d: mujoco.MjData, q: np.ndarray,
-                   radius: float = 0.25) -> np.ndarray:
+def _geom_clusters(
+    m: mujoco.MjModel, d: mujoco.MjData, q: np.ndarray, radius: float = 0.25
+) -> np.ndarray:
     """(ngeom,) int32 the cluster of each colliding geom (-1 for the others): the highest
     body whose subtree holds two colliding geoms or more, all within ``radius`` [m] of its
     origin in posture ``q`` (a hand, the head), or the geom alone. The compiled core skips
@@ -654,12 +691,15 @@ def add_target_pool(spec: mujoco.MjSpec, n: int) -> None:
     anchor = spec.sites[0].name
     for k in range(n):
         body = spec.worldbody.add_body(name=f"ik_target_{k}", mocap=True)
-        body.add_site(name=f"ik_target_{k}", size=[0.006, 0, 0], rgba=[0.1, 0.8, 0.2, 0.6],
-                      group=5)  # fmt: skip
+        body.add_site(name=f"ik_target_{k}", size=[0.006, 0, 0], rgba=[0.1, 0.8, 0.2, 0.6], group=5)
         spec.add_equality(
-            name=f"ik_connect_{k}", type=mujoco.mjtEq.mjEQ_CONNECT,
-            objtype=mujoco.mjtObj.mjOBJ_SITE, name1=anchor, name2=f"ik_target_{k}", active=False,
-        )  # fmt: skip
+            name=f"ik_connect_{k}",
+            type=mujoco.mjtEq.mjEQ_CONNECT,
+            objtype=mujoco.mjtObj.mjOBJ_SITE,
+            name1=anchor,
+            name2=f"ik_target_{k}",
+            active=False,
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -807,13 +847,23 @@ class Plan:
         self.J = np.zeros((row, m.nv))
         self.r = np.zeros(row)
         self.core = native.core().Core(
-            m._address, self.d._address, (m, self.d),
-            np.array(ints, np.int32).reshape(-1), np.array(dbls, float).reshape(-1),
-            np.array(term_i, np.int32), np.array(term_d, float), self.inv,
-            self.free.astype(np.int32), np.ascontiguousarray(self.floor), self.r, self.J,
-            self._generic_rows if self.generic else None, np.array(hard, np.int32),
-            solver.collision_pairs(self.free), solver._clusters,
-        )  # fmt: skip
+            m._address,
+            self.d._address,
+            (m, self.d),
+            np.array(ints, np.int32).reshape(-1),
+            np.array(dbls, float).reshape(-1),
+            np.array(term_i, np.int32),
+            np.array(term_d, float),
+            self.inv,
+            self.free.astype(np.int32),
+            np.ascontiguousarray(self.floor),
+            self.r,
+            self.J,
+            self._generic_rows if self.generic else None,
+            np.array(hard, np.int32),
+            solver.collision_pairs(self.free),
+            solver._clusters,
+        )
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         self.pinned = np.array([f in pinned for f in self.free.tolist()], bool)
         nat = solver.naturalness
@@ -821,8 +871,12 @@ class Plan:
             prefs = problem.preferences
             k = sum(c.rows(solver.kinematics())[0].size for c in prefs) if prefs else 0
             self.pref_r, self.pref_J = np.zeros(k), np.zeros((k, m.nv))
-            self.core.set_natural(*solver.natural_terms, self.pref_r, self.pref_J,
-                                  self._preference_rows if k else None)  # fmt: skip
+            self.core.set_natural(
+                *solver.natural_terms,
+                self.pref_r,
+                self.pref_J,
+                self._preference_rows if k else None,
+            )
 
     def _preference_rows(self) -> None:
         """The core's callback: the preferences' rows on the posture in ``solver.data``."""
@@ -857,38 +911,51 @@ class Plan:
             k = 1 if perp else 3
             bid = s.body_id(body)
             if tgt[0] == "const":
-                return (_ORIENT, k, [perp, bid, -1, 0, 0, 0],
-                        [*(sign * tgt[1]), *local, *zero[:5]])  # fmt: skip
+                return (_ORIENT, k, [perp, bid, -1, 0, 0, 0], [*(sign * tgt[1]), *local, *zero[:5]])
             if tgt[0] == "axis":
                 _, b2, loc2, sgn = tgt
-                return (_ORIENT, k, [perp, bid, s.body_id(b2), 0, 0, 0],
-                        [0.0, 0.0, 0.0, *local, *loc2, sign * sgn, 0.0])  # fmt: skip
+                return (
+                    _ORIENT,
+                    k,
+                    [perp, bid, s.body_id(b2), 0, 0, 0],
+                    [0.0, 0.0, 0.0, *local, *loc2, sign * sgn, 0.0],
+                )
             _, const, terms = tgt
-            return (_ORIENT, k, [perp, bid, -1, 0, *terms_of(terms)],
-                    [*const, *local, 0.0, 0.0, 0.0, sign, 0.0])  # fmt: skip
+            return (
+                _ORIENT,
+                k,
+                [perp, bid, -1, 0, *terms_of(terms)],
+                [*const, *local, 0.0, 0.0, 0.0, sign, 0.0],
+            )
 
         if isinstance(c, Place):
             flat = _flat_point(c.target)
             if flat is not None:
                 const, terms = flat
-                return [(_POINT, 3, [0, s.site_id(c.site), -1, 0, *terms_of(terms)],
-                         [*const, *zero[3:]])]  # fmt: skip
+                return [
+                    (
+                        _POINT,
+                        3,
+                        [0, s.site_id(c.site), -1, 0, *terms_of(terms)],
+                        [*const, *zero[3:]],
+                    )
+                ]
         elif isinstance(c, Orient):
             b = orient(c.body, c.local, c.rel, c.vector)
             if b is not None:
                 return [b]
         elif isinstance(c, Look):
             n_terms = len(term_d)
-            eyes = [orient(body, local, Rel.ALONG,
-                           Lin(((1.0, c.target), (-1.0, BodyOrigin(body)))))
-                    for body, local in c.eyes]  # fmt: skip
+            eyes = [
+                orient(body, local, Rel.ALONG, Lin(((1.0, c.target), (-1.0, BodyOrigin(body)))))
+                for body, local in c.eyes
+            ]
             if all(b is not None for b in eyes):
                 return eyes
             del term_i[2 * n_terms :], term_d[n_terms:]
         elif isinstance(c, JointTarget):
             qadr, dof, _ = s.joint_info(c.joint)
-            return [(_JOINT, 1, [0, qadr, -1, dof, 0, 0],
-                     [*zero[:9], float(c.value), 0.0])]  # fmt: skip
+            return [(_JOINT, 1, [0, qadr, -1, dof, 0, 0], [*zero[:9], float(c.value), 0.0])]
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
         else:
@@ -917,7 +984,7 @@ class Plan:
         out = []
         self.core.rows()
         for c, it in zip(self.cons, self.items):
-            r = self.r[it.start:it.stop]
+            r = self.r[it.start : it.stop]
             if it.scaled:
                 value = c.residual(self.s.kinematics())
             elif isinstance(c, Look):  # each eye's rows are a - v: the angle from |a - v|

@@ -74,8 +74,12 @@ class Clip:
         t = float(self.time[frame])
         out = {}
         for track, ivs in self.schedule.items():
-            names = [i.block for i in ivs if i.start - 1e-9 <= t < i.end - 1e-9 or (
-                     t >= i.end - 1e-9 and i.end >= self.duration - 1e-9 and i.start <= t)]  # fmt: skip
+            names = [
+                i.block
+                for i in ivs
+                if i.start - 1e-9 <= t < i.end - 1e-9
+                or (t >= i.end - 1e-9 and i.end >= self.duration - 1e-9 and i.start <= t)
+            ]
             out[track] = names[-1] if names else ""
         return out
 
@@ -136,8 +140,9 @@ class Targets:
     """The place / orient / look constraints of a score, as IK constraints with their
     blocks' intervals (compiled once by :class:`~azee_mj.schedule.Compiler`)."""
 
-    def __init__(self, score: sc.Score, solver: ik.Solver | None = None,
-                 signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
+    def __init__(
+        self, score: sc.Score, solver: ik.Solver | None = None, signer_map: SignerMap = DEFAULT_MAP
+    ):
         self.solver = solver or shared_solver()
         comp = Compiler(self.solver.model, signer_map)
         out = []
@@ -154,9 +159,12 @@ class Targets:
     def active(self, t: float) -> list[_Target]:
         """Targets whose block holds at time ``t`` [s] (the last frame keeps its blocks)."""
         eps = 1e-9
-        return [x for x in self.items
-                if x.start - eps <= t < x.end - eps
-                or (t >= self.duration - eps and x.end >= self.duration - eps)]  # fmt: skip
+        return [
+            x
+            for x in self.items
+            if x.start - eps <= t < x.end - eps
+            or (t >= self.duration - eps and x.end >= self.duration - eps)
+        ]
 
 
 def markers(
@@ -202,8 +210,9 @@ def markers(
         if con.dist < -PENETRATION:
             g1 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, con.geom[0]) or str(con.geom[0])
             g2 = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, con.geom[1]) or str(con.geom[1])
-            out.append(Marker("contact", f"{g1}|{g2}", con.pos.copy(), None, -float(con.dist),
-                              True))  # fmt: skip
+            out.append(
+                Marker("contact", f"{g1}|{g2}", con.pos.copy(), None, -float(con.dist), True)
+            )
     return out
 
 
@@ -217,17 +226,24 @@ def add_markers(scn: mujoco.MjvScene, items: Sequence[Marker]) -> int:
         if mk.kind in ("sphere", "contact"):
             size = 0.012 if mk.kind == "sphere" else 0.008
             rgba = _RED if mk.violated else (_GREEN if mk.kind == "sphere" else _RED)
-            mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([size, 0, 0]),
-                                np.asarray(mk.pos, float), np.eye(3).ravel(),
-                                np.array(rgba, np.float32))  # fmt: skip
+            mujoco.mjv_initGeom(
+                g,
+                mujoco.mjtGeom.mjGEOM_SPHERE,
+                np.array([size, 0, 0]),
+                np.asarray(mk.pos, float),
+                np.eye(3).ravel(),
+                np.array(rgba, np.float32),
+            )
         else:
             rgba = _RED if mk.violated else (_BLUE if mk.kind == "arrow" else _YELLOW)
             typ = mujoco.mjtGeom.mjGEOM_ARROW if mk.kind == "arrow" else mujoco.mjtGeom.mjGEOM_LINE
-            mujoco.mjv_initGeom(g, typ, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
-                                np.array(rgba, np.float32))  # fmt: skip
+            mujoco.mjv_initGeom(
+                g, typ, np.zeros(3), np.zeros(3), np.eye(3).ravel(), np.array(rgba, np.float32)
+            )
             width = 0.006 if mk.kind == "arrow" else 3.0
-            mujoco.mjv_connector(g, typ, width, np.asarray(mk.pos, float),
-                                 np.asarray(mk.end, float))  # fmt: skip
+            mujoco.mjv_connector(
+                g, typ, width, np.asarray(mk.pos, float), np.asarray(mk.end, float)
+            )
         g.category = mujoco.mjtCatBit.mjCAT_DECOR
         scn.ngeom += 1
         n += 1
@@ -237,8 +253,7 @@ def add_markers(scn: mujoco.MjvScene, items: Sequence[Marker]) -> int:
 def frame_text(clip: Clip, frame: int, speed: float = 1.0, paused: bool = False) -> tuple[str, str]:
     """The overlay of a frame: (left column, right column), one line per row."""
     left = ["time", "frame"]
-    right = [f"{clip.time[frame]:.3f} / {clip.duration:.3f} s",
-             f"{frame} / {len(clip.time) - 1}"]  # fmt: skip
+    right = [f"{clip.time[frame]:.3f} / {clip.duration:.3f} s", f"{frame} / {len(clip.time) - 1}"]
     left.append("speed")
     right.append(f"{speed:g}x" + (" (paused)" if paused else ""))
     for track, block in clip.active_blocks(frame).items():

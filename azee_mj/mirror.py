@@ -63,14 +63,23 @@ def _mirror(obj):
     if isinstance(obj, sc.Trill):
         # A rotation turns the other way in the mirror; a displacement does not.
         amp = -obj.amplitude if obj.bone is not None else obj.amplitude
-        return dataclasses.replace(obj, site=_mirror(obj.site), bone=_mirror(obj.bone),
-                                   vector=_mirror(obj.vector), amplitude=amp)  # fmt: skip
+        return dataclasses.replace(
+            obj,
+            site=_mirror(obj.site),
+            bone=_mirror(obj.bone),
+            vector=_mirror(obj.vector),
+            amplitude=amp,
+        )
     if isinstance(obj, sc.Score):
-        return dataclasses.replace(obj, strong_side={"L": "R", "R": "L"}[obj.strong_side],
-                                   root=_mirror(obj.root))  # fmt: skip
+        return dataclasses.replace(
+            obj, strong_side={"L": "R", "R": "L"}[obj.strong_side], root=_mirror(obj.root)
+        )
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        changes = {f.name: _mirror(getattr(obj, f.name)) for f in dataclasses.fields(obj)
-                   if f.name != "annotations"}  # fmt: skip
+        changes = {
+            f.name: _mirror(getattr(obj, f.name))
+            for f in dataclasses.fields(obj)
+            if f.name != "annotations"
+        }
         return dataclasses.replace(obj, **changes)
     return obj
 
@@ -104,8 +113,10 @@ class JointMirror:
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, mirror_name(name))
             kind = int(m.jnt_type[j])
-            if k < 0 or kind not in (int(mujoco.mjtJoint.mjJNT_HINGE),
-                                     int(mujoco.mjtJoint.mjJNT_SLIDE)):  # fmt: skip
+            if k < 0 or kind not in (
+                int(mujoco.mjtJoint.mjJNT_HINGE),
+                int(mujoco.mjtJoint.mjJNT_SLIDE),
+            ):
                 return None
             c = float((_REFLECT * d.xaxis[j]) @ d.xaxis[k])
             hinge = kind == int(mujoco.mjtJoint.mjJNT_HINGE)

@@ -13,7 +13,9 @@ MODEL_PATH = Path(__file__).parent / "mjcf" / "signer.xml"
 SCENE_PATH = Path(__file__).parent / "mjcf" / "scene.xml"
 
 
-def load_model(path: str | Path = MODEL_PATH, signer_map: SignerMap = DEFAULT_MAP) -> mujoco.MjModel:
+def load_model(
+    path: str | Path = MODEL_PATH, signer_map: SignerMap = DEFAULT_MAP
+) -> mujoco.MjModel:
     """Compile an MJCF signer and check that every name of ``signer_map`` exists in it."""
     model = mujoco.MjModel.from_xml_path(str(path))
     check_map(model, signer_map)
@@ -22,6 +24,7 @@ def load_model(path: str | Path = MODEL_PATH, signer_map: SignerMap = DEFAULT_MA
 
 def check_map(model: mujoco.MjModel, signer_map: SignerMap) -> None:
     """Raise :class:`ModelError` naming the first map entry the model lacks."""
+
     def has(obj, name):
         return mujoco.mj_name2id(model, obj, name) >= 0
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import itertools
 
 import mujoco
 import numpy as np
@@ -101,9 +102,20 @@ class Motion:
         #: Largest joint change between two frames solved one by one [rad].
         self.frame_step = MAX_JOINT_SPEED / fps
 
-    def solve(self, cons, free, q0, t: float, seeds=(), max_change=None,
-              natural: bool = True, preferences=(), restarts=None, prefer=None,
-              bounds=None) -> ik.IKResult:  # fmt: skip
+    def solve(
+        self,
+        cons,
+        free,
+        q0,
+        t: float,
+        seeds=(),
+        max_change=None,
+        natural: bool = True,
+        preferences=(),
+        restarts=None,
+        prefer=None,
+        bounds=None,
+    ) -> ik.IKResult:
         """Solve ``cons`` moving joints ``free`` from ``q0`` (and ``seeds``, other starts),
         allowing the contacts of time ``t`` [s], each joint within ``max_change`` of ``q0``
         and inside ``bounds`` ((lower, upper), each (nq,)) if given; every result is kept
@@ -119,13 +131,30 @@ class Motion:
         self.results.append(res)
         return res
 
-    def problem(self, cons, free, q0, t: float, seeds=(), max_change=None,
-                natural: bool = True, preferences=()) -> ik.IKProblem:  # fmt: skip
+    def problem(
+        self,
+        cons,
+        free,
+        q0,
+        t: float,
+        seeds=(),
+        max_change=None,
+        natural: bool = True,
+        preferences=(),
+    ) -> ik.IKProblem:
         """The IK problem :meth:`solve` solves."""
         names = self.s.body_names
         touching = tuple((names[a], names[b]) for a, b in self.s.allowed_at(t) if a < b)
-        return ik.IKProblem(tuple(cons), tuple(free), touching, q0, tuple(seeds), max_change,
-                            natural, preferences=tuple(preferences))  # fmt: skip
+        return ik.IKProblem(
+            tuple(cons),
+            tuple(free),
+            touching,
+            q0,
+            tuple(seeds),
+            max_change,
+            natural,
+            preferences=tuple(preferences),
+        )
 
     def curve_preference(self, qf: np.ndarray, joints) -> CurvePreference:
         """A preference for ``joints`` at their values in posture ``qf`` (a blend's frame)."""
@@ -135,8 +164,10 @@ class Motion:
     def soft_targets(self, qf: np.ndarray, joints) -> list[cn.JointTarget]:
         """Soft targets keeping ``joints`` near posture ``qf`` (a blend to follow)."""
         adr = self.m.jnt_qposadr
-        return [cn.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
-                for j in sorted(joints)]  # fmt: skip
+        return [
+            cn.JointTarget(j, float(qf[adr[self.solver.joint_id(j)]]), 0.3, "blend", soft=True)
+            for j in sorted(joints)
+        ]
 
     def penetrates(self, qf: np.ndarray, t: float) -> bool:
         """Whether posture ``qf`` penetrates beyond the limit outside time ``t``'s contacts."""
@@ -144,8 +175,9 @@ class Motion:
         d.qpos[:] = qf
         return cn.penetration_depth(self.m, d, self.s.allowed_at(t)) > cn.PENETRATION_LIMIT
 
-    def track_curve(self, tkeys: list[Key], times: np.ndarray, dofs: np.ndarray,
-                     carried: list[float] = ()):  # fmt: skip
+    def track_curve(
+        self, tkeys: list[Key], times: np.ndarray, dofs: np.ndarray, carried: list[float] = ()
+    ):
         """Joint values (T, len(dofs)) of one track and a (T,) flag where it blends. A blend
         starts no earlier than the end of a key of another track that this track carries
         (``carried``, end times), so that it does not move a target while it is held."""
@@ -159,13 +191,25 @@ class Motion:
         holds: list[list] = []
         for k in tkeys:
             qk = k.q[dofs]
-            if holds and abs(holds[-1][1] - k.start) < 1e-9 and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE):
+            if (
+                holds
+                and abs(holds[-1][1] - k.start) < 1e-9
+                and np.allclose(holds[-1][2], qk, atol=SAME_POSTURE)
+            ):
                 if holds[-1][1] == holds[-1][5] and k.relax:
                     holds[-1][5] = k.end
                 holds[-1][1] = k.end
             else:
-                holds.append([k.start, k.end, qk, k.relax,
-                              all(isinstance(c, cn.JointTarget) for c in k.cons), k.end])
+                holds.append(
+                    [
+                        k.start,
+                        k.end,
+                        qk,
+                        k.relax,
+                        all(isinstance(c, cn.JointTarget) for c in k.cons),
+                        k.end,
+                    ]
+                )
         prev_q, prev_start, prev_end = self.home[dofs], 0.0, 0.0
         first = True
         for a, b, qk, relax, shape_only, due in holds:
@@ -223,14 +267,20 @@ class Motion:
                 i = next((i for i, k in enumerate(keys[tr]) if k.start <= t < k.end), None)
                 if i is not None:
                     key, goal = keys[tr][i], self._goal(keys[tr], i, self.track_dofs[tr])
-                    keep = [c for c in key.cons if goal is None or c in goal.cons
-                            or not isinstance(c, cn.JointTarget)]  # fmt: skip
+                    keep = [
+                        c
+                        for c in key.cons
+                        if goal is None or c in goal.cons or not isinstance(c, cn.JointTarget)
+                    ]
                     cons += [c for c in keep if c not in cons]
                     free |= set(key.free)
             for b in tp:
                 if b.start <= t < b.end and limbs[b.path] & tracks:
-                    cons.append(cn.Place(sites[b.path], Const(tuple(paths[b.path][f])), 1e-3,
-                                         f"{b.path}@path"))  # fmt: skip
+                    cons.append(
+                        cn.Place(
+                            sites[b.path], Const(tuple(paths[b.path][f])), 1e-3, f"{b.path}@path"
+                        )
+                    )
                     free |= {j for tr in limbs[b.path] for j in self.track_joints[tr]}
             if not cons:
                 free = {j for tr in sorted(tracks) for j in self.track_joints[tr]}
@@ -238,8 +288,9 @@ class Motion:
                 if f > 0 and free:
                     # after frames pushed out, back to the curve at most a step a frame
                     d, before = self._dofs(free), q[f - 1]
-                    q[f][d] = np.clip(q[f][d], before[d] - self.frame_step,
-                                      before[d] + self.frame_step)
+                    q[f][d] = np.clip(
+                        q[f][d], before[d] - self.frame_step, before[d] + self.frame_step
+                    )
                 if tracks and self.penetrates(q[f], t):
                     # A blend that would pass through the body: push it out, staying close.
                     q0 = q[f].copy()
@@ -247,15 +298,23 @@ class Motion:
                         # from half a step toward the curve from the frame before, moving at
                         # most half a step more: consecutive pushed frames cannot zig-zag
                         d, before = self._dofs(free), q[f - 1]
-                        near = np.clip(q[f][d], before[d] - self.frame_step,
-                                       before[d] + self.frame_step)
+                        near = np.clip(
+                            q[f][d], before[d] - self.frame_step, before[d] + self.frame_step
+                        )
                         q0[d] = before[d] + 0.5 * (near - before[d])
-                    q[f] = self.solve(soft, sorted(free), q0, t, max_change=0.5 * self.frame_step,
-                                      restarts=0).qpos  # fmt: skip
+                    q[f] = self.solve(
+                        soft, sorted(free), q0, t, max_change=0.5 * self.frame_step, restarts=0
+                    ).qpos
                     if f > 0 and self.penetrates(q[f], t):
                         # still through (it started deep in): from the frame before, clear
-                        q[f] = self.solve(soft, sorted(free), q[f - 1], t,
-                                          max_change=0.5 * self.frame_step, restarts=0).qpos
+                        q[f] = self.solve(
+                            soft,
+                            sorted(free),
+                            q[f - 1],
+                            t,
+                            max_change=0.5 * self.frame_step,
+                            restarts=0,
+                        ).qpos
                 continue
             free |= {j for tr in tracks for j in self.track_joints[tr]}
             # The joints the constraints move start from the frame before (final by now),
@@ -281,13 +340,28 @@ class Motion:
                     q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
             if bounds is not None:
                 q0 = np.clip(q0, *bounds)
-            res = self.solve(cons, moved, q0, t, max_change=step, restarts=FRAME_RESTARTS,
-                             preferences=(self.curve_preference(q[f], moved),), prefer=q[f],
-                             bounds=bounds)  # fmt: skip
+            res = self.solve(
+                cons,
+                moved,
+                q0,
+                t,
+                max_change=step,
+                restarts=FRAME_RESTARTS,
+                preferences=(self.curve_preference(q[f], moved),),
+                prefer=q[f],
+                bounds=bounds,
+            )
             if rest and not res.converged and res.penetration > cn.PENETRATION_LIMIT:
                 # the blend goes through the body: every joint may push it out
-                res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
-                                 max_change=step, restarts=FRAME_RESTARTS, bounds=bounds)  # fmt: skip
+                res = self.solve(
+                    cons + self.soft_targets(q[f], free),
+                    sorted(free),
+                    q0,
+                    t,
+                    max_change=step,
+                    restarts=FRAME_RESTARTS,
+                    bounds=bounds,
+                )
             d = self._dofs(sorted(free))
             if f > 0 and np.abs(res.qpos[d] - q[f - 1][d]).max() > step + 1e-9:
                 # a constraint far from the frame before (a key's hand shape that the blend
@@ -295,8 +369,15 @@ class Motion:
                 q0[d] = q[f - 1][d]
                 if bounds is not None:
                     q0 = np.clip(q0, *bounds)
-                res = self.solve(cons + self.soft_targets(q[f], free), sorted(free), q0, t,
-                                 max_change=step, restarts=FRAME_RESTARTS, bounds=bounds)  # fmt: skip
+                res = self.solve(
+                    cons + self.soft_targets(q[f], free),
+                    sorted(free),
+                    q0,
+                    t,
+                    max_change=step,
+                    restarts=FRAME_RESTARTS,
+                    bounds=bounds,
+                )
             q[f] = res.qpos
         return q
 
@@ -326,7 +407,9 @@ class Motion:
         """The key a track's blend from key ``i`` heads for: the first after the keys that
         hold key ``i``'s posture on without a gap (None: the last posture)."""
         for a, b in zip(tkeys[i:], tkeys[i + 1 :]):
-            if abs(a.end - b.start) > 1e-9 or not np.allclose(a.q[dofs], b.q[dofs], atol=SAME_POSTURE):
+            if abs(a.end - b.start) > 1e-9 or not np.allclose(
+                a.q[dofs], b.q[dofs], atol=SAME_POSTURE
+            ):
                 return b
         return None
 
@@ -359,8 +442,12 @@ class Motion:
                 continue
             site = self.comp.site(b.transpath_site)
             kf = sel[np.linspace(0, sel.size - 1, min(6, sel.size)).round().astype(int)]
-            free = tuple(j for t in self.track_joints for j in self.track_joints[t]
-                         if t not in ("face", "eyes"))  # fmt: skip
+            free = tuple(
+                j
+                for t in self.track_joints
+                for j in self.track_joints[t]
+                if t not in ("face", "eyes")
+            )
             kq = {}
             for f in kf:
                 soft = self.soft_targets(q[f], free)
@@ -368,7 +455,7 @@ class Motion:
                 kq[f] = self.solve(cons + soft, free, q[f], times[f]).qpos
             # Whole-body blend between consecutive transpath keyframes.
             fr = sorted(kq)
-            for f0, f1 in zip(fr[:-1], fr[1:]):
+            for f0, f1 in itertools.pairwise(fr):
                 for f in range(f0, f1):
                     u = minjerk((f - f0) / (f1 - f0))
                     q[f] = kq[f0] + u * (kq[f1] - kq[f0])
@@ -397,17 +484,23 @@ class Motion:
                     v = v / np.linalg.norm(v)
                     a = c.amplitude * env * np.sin(2 * np.pi * c.frequency * (times[f] - b.start))
                     if c.site is not None:
-                        mujoco.mj_jacSite(m, d, jac, None, self.solver.site_id(self.comp.site(c.site)))
+                        mujoco.mj_jacSite(
+                            m, d, jac, None, self.solver.site_id(self.comp.site(c.site))
+                        )
                     else:
-                        mujoco.mj_jacBody(m, d, None, jac, self.solver.body_id(c.bone.model_body(self.smap)))
+                        mujoco.mj_jacBody(
+                            m, d, None, jac, self.solver.body_id(c.bone.model_body(self.smap))
+                        )
                     J = jac[:, dofs]
                     dq = J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), a * v)
-                    q[f, dofs] = np.clip(q[f, dofs] + dq, self.solver.lower[dofs],
-                                         self.solver.upper[dofs])  # fmt: skip
+                    q[f, dofs] = np.clip(
+                        q[f, dofs] + dq, self.solver.lower[dofs], self.solver.upper[dofs]
+                    )
                     if self.penetrates(q[f], times[f]):  # the shake must not go through
                         joints = {j for t in self.comp.tracks_of(c) for j in self.track_joints[t]}
-                        q[f] = self.solve(self.soft_targets(q[f], joints), sorted(joints), q[f],
-                                           times[f]).qpos  # fmt: skip
+                        q[f] = self.solve(
+                            self.soft_targets(q[f], joints), sorted(joints), q[f], times[f]
+                        ).qpos
         return q
 
 
@@ -455,7 +548,11 @@ def path_points(route, x0, x1, u, sched: Schedule, q_start) -> np.ndarray:
         ang = u[:, 0] * total
         rad = rad0 + u[:, 0] * (np.linalg.norm(p1) - rad0)
         h = (r0 @ n) + u[:, 0] * ((r1 @ n) - (r0 @ n))
-        return c + rad[:, None] * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2) + h[:, None] * n
+        return (
+            c
+            + rad[:, None] * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2)
+            + h[:, None] * n
+        )
     raise TypeError(route)
 
 

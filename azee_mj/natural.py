@@ -97,8 +97,13 @@ class Effort:
 
     def _eval(self, d: mujoco.MjData, cols: np.ndarray):
         # The solver's compiled core computes both (its polish uses the same code).
-        tau, J = native.core().effort(self.m._address, d._address, self._dofs32, self.anc_u8,
-                                      np.ascontiguousarray(cols, np.int32))  # fmt: skip
+        tau, J = native.core().effort(
+            self.m._address,
+            d._address,
+            self._dofs32,
+            self.anc_u8,
+            np.ascontiguousarray(cols, np.int32),
+        )
         return np.frombuffer(tau), np.frombuffer(J)
 
 
@@ -121,16 +126,40 @@ def rows(nat: Naturalness, effort: Effort, d: mujoco.MjData, cols: np.ndarray):
 
 #: Strength of each joint group [N m] (rough maximal isometric torques of an adult; only
 #: their ratios matter): the trunk and the shoulder are strong, the neck and wrist weak.
-STRENGTH = {"spine": 150.0, "head": 20.0, "clav": 50.0, "arm": 60.0, "f_arm_flex": 50.0,
-            "f_arm_pron": 10.0, "palm": 10.0}
+STRENGTH = {
+    "spine": 150.0,
+    "head": 20.0,
+    "clav": 50.0,
+    "arm": 60.0,
+    "f_arm_flex": 50.0,
+    "f_arm_pron": 10.0,
+    "palm": 10.0,
+}
 #: Recruitment cost per joint group: the comfort weight of one range's travel. Fingers,
 #: wrist, forearm and arm move first, the clavicle next, the neck and spine last.
-RECRUIT = {"hand": 0.3, "palm": 0.5, "f_arm": 0.5, "arm": 1.0, "clav": 4.0, "head": 8.0,
-           "spine": 16.0, "eyes": 1.0, "face": 1.0}
+RECRUIT = {
+    "hand": 0.3,
+    "palm": 0.5,
+    "f_arm": 0.5,
+    "arm": 1.0,
+    "clav": 4.0,
+    "head": 8.0,
+    "spine": 16.0,
+    "eyes": 1.0,
+    "face": 1.0,
+}
 
 
-_STEMS = (("back", "spine"), ("neck", "head"), ("head", "head"), ("eye", "eyes"),
-          ("clav", "clav"), ("f_arm", "f_arm"), ("arm", "arm"), ("palm", "palm"))
+_STEMS = (
+    ("back", "spine"),
+    ("neck", "head"),
+    ("head", "head"),
+    ("eye", "eyes"),
+    ("clav", "clav"),
+    ("f_arm", "f_arm"),
+    ("arm", "arm"),
+    ("palm", "palm"),
+)
 
 
 def _group(bone: str | None, track: str) -> str:
@@ -141,8 +170,9 @@ def _group(bone: str | None, track: str) -> str:
     return "hand" if bone is not None else track
 
 
-def from_signer_map(model: mujoco.MjModel, signer_map, neutral: np.ndarray,
-                    effort_weight: float = 1.0) -> Naturalness:
+def from_signer_map(
+    model: mujoco.MjModel, signer_map, neutral: np.ndarray, effort_weight: float = 1.0
+) -> Naturalness:
     """The objective of a signer mapped by ``signer_map`` (its AZee bones and articulator
     tracks), neutral at ``neutral`` (nq,). A joint's group is the AZee bone of its body; a
     forearm joint turning about the bone's DIR is the weaker pronation."""

@@ -72,14 +72,31 @@ def arms_of(signer_map, sides=("R", "L")) -> tuple[Arm, ...]:
         if len(track) < 6 or None in bones:
             continue
         flex, abd, rot, elbow = track[2:6]
-        out.append(Arm(bones[0].body, bones[1].body, bones[2].body, flex, abd, rot, elbow,
-                       -1.0 if s == "R" else 1.0, tuple(track[6:])))
+        out.append(
+            Arm(
+                bones[0].body,
+                bones[1].body,
+                bones[2].body,
+                flex,
+                abd,
+                rot,
+                elbow,
+                -1.0 if s == "R" else 1.0,
+                tuple(track[6:]),
+            )
+        )
     return tuple(out)
 
 
-def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: np.ndarray,
-             target: np.ndarray, facing: tuple[np.ndarray, float] | None = None,
-             swivel: float | None = None) -> dict[str, float] | None:
+def arm_seed(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    arm: Arm,
+    hand_point: np.ndarray,
+    target: np.ndarray,
+    facing: tuple[np.ndarray, float] | None = None,
+    swivel: float | None = None,
+) -> dict[str, float] | None:
     """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
     posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel
     (``swivel`` [rad] from the elbow hanging down, outward positive; None: ``SWIVEL_OUT``).
@@ -93,10 +110,14 @@ def arm_seed(model: mujoco.MjModel, data: mujoco.MjData, arm: Arm, hand_point: n
     signer).
     """
     m, d = model, data
-    bid = {n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
-           for n in (arm.upper, arm.fore, arm.hand)}  # fmt: skip
-    jid = {n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)
-           for n in (arm.flex, arm.abd, arm.rot, arm.elbow)}  # fmt: skip
+    bid = {
+        n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
+        for n in (arm.upper, arm.fore, arm.hand)
+    }
+    jid = {
+        n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)
+        for n in (arm.flex, arm.abd, arm.rot, arm.elbow)
+    }
     if min(bid.values()) < 0 or min(jid.values()) < 0:
         return None
     s = d.xpos[bid[arm.upper]].copy()
@@ -164,8 +185,16 @@ def _rot_y(t: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
-              meet: str | None = None, carried_by=None) -> tuple[np.ndarray, ...]:
+def arm_seeds(
+    solver: ik.Solver,
+    arms,
+    cons,
+    free,
+    q0: np.ndarray,
+    hand_of,
+    meet: str | None = None,
+    carried_by=None,
+) -> tuple[np.ndarray, ...]:
     """Starts (nq,) for a problem: each free arm in its two-bone posture for the first
     placement of a site on its hand; when a placement joins the two hands, both hands
     meeting at model site ``meet`` (the neutral signing space), once as the arms bring them (palms facing each
@@ -221,8 +250,10 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
             # each hand a little to its own side, so that they start apart and close in
             centre = d.site_xpos[solver.site_id(meet)].copy()
             gap = np.array([0.0, MEET_GAP, 0.0])
-            meeting = [(arm, c.site, centre + arm.out * gap),
-                       (other, c.target.site, centre + other.out * gap)]
+            meeting = [
+                (arm, c.site, centre + arm.out * gap),
+                (other, c.target.site, centre + other.out * gap),
+            ]
             joined = (arm, other, c, centre)
     aimed = {h[0] for h in head_on}  # the arms that bring a fingertip in head-on
     if head_on:
@@ -250,8 +281,9 @@ def arm_seeds(solver: ik.Solver, arms, cons, free, q0: np.ndarray, hand_of,
     return tuple(seeds)
 
 
-def _across(solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of, carried_by,
-            seeded) -> list[np.ndarray]:
+def _across(
+    solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of, carried_by, seeded
+) -> list[np.ndarray]:
     """Starts for a hand that touches the other arm: that arm's palm where
     ``carried_by`` says it rests (its forearm across in front of the body), then the hand
     reaching the touched site there, as it comes and head-on."""
@@ -262,13 +294,15 @@ def _across(solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of, carried_by,
         if arm not in arms or held is None or held[0] not in arms or held[0] is arm:
             continue
         other, palm, at = held
-        return _then_reach(solver, seeded([(other, palm, solver.kinematics().value(at))]),
-                           arm, c, cons, q0)  # fmt: skip
+        return _then_reach(
+            solver, seeded([(other, palm, solver.kinematics().value(at))]), arm, c, cons, q0
+        )
     return []
 
 
-def _then_reach(solver: ik.Solver, q1: np.ndarray, arm: Arm, c: cn.Place, cons,
-                q0: np.ndarray) -> list[np.ndarray]:
+def _then_reach(
+    solver: ik.Solver, q1: np.ndarray, arm: Arm, c: cn.Place, cons, q0: np.ndarray
+) -> list[np.ndarray]:
     """From ``q1``, where the other hand already holds ``c``'s target site, ``arm``
     reaching that site as it comes and, for a fingertip, head-on. Leaves ``data`` on
     ``q0``."""
@@ -293,8 +327,14 @@ def _then_reach(solver: ik.Solver, q1: np.ndarray, arm: Arm, c: cn.Place, cons,
     return out
 
 
-def _aim_hand(solver: ik.Solver, q: np.ndarray, joints, site: str, target: np.ndarray,
-              facing: cn.Orient | None = None) -> np.ndarray:
+def _aim_hand(
+    solver: ik.Solver,
+    q: np.ndarray,
+    joints,
+    site: str,
+    target: np.ndarray,
+    facing: cn.Orient | None = None,
+) -> np.ndarray:
     """``q`` with the forearm rotation and wrist ``joints`` (within their ranges) turning
     the hand so that ``site`` comes nearest ``target`` [m] and, with ``facing``, its
     surface turns to face the other (the elbow and the wrist stay where the two-bone
@@ -327,16 +367,18 @@ def _aim_hand(solver: ik.Solver, q: np.ndarray, joints, site: str, target: np.nd
 
 def _grid(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
     """(n ** k, k) points of a regular grid over the box ``lo``..``hi`` (k joints)."""
-    return np.stack(np.meshgrid(*[np.linspace(a, b, n) for a, b in zip(lo, hi)],
-                                indexing="ij"), -1).reshape(-1, len(lo))  # fmt: skip
+    return np.stack(
+        np.meshgrid(*[np.linspace(a, b, n) for a, b in zip(lo, hi)], indexing="ij"), -1
+    ).reshape(-1, len(lo))
 
 
 def _box_search(miss, grid: np.ndarray, maxfev: int) -> np.ndarray:
     """The minimum of ``miss`` over joint values: the best point of ``grid``, then
     Nelder-Mead from it (at most ``maxfev`` evaluations; ``miss`` clips to the box)."""
     best = min(grid, key=miss)
-    return optimize.minimize(miss, best, method="Nelder-Mead",
-                             options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": maxfev}).x
+    return optimize.minimize(
+        miss, best, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": maxfev}
+    ).x
 
 
 #: How much one radian of two surfaces turned from face to face weighs against a distance
@@ -352,9 +394,18 @@ def _facing_of(solver: ik.Solver, place: cn.Place, cons) -> cn.Orient | None:
     m = solver.model
     body = int(m.site_bodyid[solver.site_id(place.site)])
     tbody = int(m.site_bodyid[solver.site_id(place.target.site)])
-    return next((o for o in cons if isinstance(o, cn.Orient) and o.rel is cn.Rel.OPP
-                 and isinstance(o.vector, BodyAxis) and solver.body_id(o.body) == body
-                 and solver.body_id(o.vector.body) == tbody), None)  # fmt: skip
+    return next(
+        (
+            o
+            for o in cons
+            if isinstance(o, cn.Orient)
+            and o.rel is cn.Rel.OPP
+            and isinstance(o.vector, BodyAxis)
+            and solver.body_id(o.body) == body
+            and solver.body_id(o.vector.body) == tbody
+        ),
+        None,
+    )
 
 
 #: A hand site whose outward normal is this close to the direction from the wrist to it
@@ -389,8 +440,9 @@ SWIVEL_RETRIES = (0.0, -np.pi / 2, np.pi / 2, np.pi)
 HAND_TURNS = (1.2, 0.8)
 
 
-def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
-                 q0: np.ndarray, turns=None) -> Iterable[np.ndarray]:
+def swivel_seeds(
+    solver: ik.Solver, arms, hand_of, problem: ik.IKProblem, q0: np.ndarray, turns=None
+) -> Iterable[np.ndarray]:
     """Starts (nq,) on other arm branches, for a solve that failed from ``q0``: first every
     free arm in its natural two-bone posture for its hand's first placement
     (:func:`arm_seeds`); then ``q0`` with each placed hand turned by ``HAND_TURNS`` (about
@@ -408,8 +460,9 @@ def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
     free = set(solver.free_dofs(problem).tolist())
     goals: dict[Arm, list[tuple[np.ndarray, np.ndarray]]] = {}  # (hand point, target)
     for arm in arms:
-        if not all(solver.joint_info(j)[1] in free for j in (arm.flex, arm.abd, arm.rot,
-                                                              arm.elbow)):  # fmt: skip
+        if not all(
+            solver.joint_info(j)[1] in free for j in (arm.flex, arm.abd, arm.rot, arm.elbow)
+        ):
             continue
         wrist = d.xpos[solver.body_id(arm.hand)].copy()
         goals[arm] = [(wrist, wrist)]
@@ -437,8 +490,11 @@ def swivel_seeds(solver: ik.Solver, arms, hand_of, problem: ik.IKProblem,
                 for j, v in (sol or {}).items():
                     q[solver.joint_info(j)[0]] = v
                 out.append(q)
-    return itertools.chain(out, _head_on_solves(solver, goals, hand_of, problem, q0),
-                           _turned_upper_arms(solver, goals, problem, q0))
+    return itertools.chain(
+        out,
+        _head_on_solves(solver, goals, hand_of, problem, q0),
+        _turned_upper_arms(solver, goals, problem, q0),
+    )
 
 
 def _turned_upper_arms(solver: ik.Solver, goals, problem: ik.IKProblem, q0: np.ndarray):
@@ -448,8 +504,7 @@ def _turned_upper_arms(solver: ik.Solver, goals, problem: ik.IKProblem, q0: np.n
     m, d = solver.model, solver.data
     k = solver.kinematics()
     for arm in goals:
-        rules = [c for c in problem.constraints
-                 if isinstance(c, cn.Orient) and c.body == arm.upper]  # fmt: skip
+        rules = [c for c in problem.constraints if isinstance(c, cn.Orient) and c.body == arm.upper]
         if not rules:
             continue
         d.qpos[:] = q0
@@ -483,9 +538,17 @@ def _head_on_solves(solver: ik.Solver, goals, hand_of, problem: ik.IKProblem, q0
     m, d = solver.model, solver.data
     k = solver.kinematics()
     for arm in goals:
-        c = next((c for c in problem.constraints if isinstance(c, cn.Place)
-                  and hand_of(c.site) is arm and isinstance(c.target, SitePos)
-                  and hand_of(c.target.site) is not arm), None)  # fmt: skip
+        c = next(
+            (
+                c
+                for c in problem.constraints
+                if isinstance(c, cn.Place)
+                and hand_of(c.site) is arm
+                and isinstance(c.target, SitePos)
+                and hand_of(c.target.site) is not arm
+            ),
+            None,
+        )
         if c is None:
             continue
         sid = solver.site_id(c.site)
@@ -502,10 +565,17 @@ def _head_on_solves(solver: ik.Solver, goals, hand_of, problem: ik.IKProblem, q0
         nl = d.xmat[tbody].reshape(3, 3).T @ normal
         seg = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.site_bodyid[sid]))
         tname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, tbody)
-        rule = cn.Orient(seg, tuple(local / np.linalg.norm(local)), cn.Rel.OPP,
-                         BodyAxis(tname, tuple(nl)), tol=HEAD_ON_SEGMENT, label="head-on")
-        aug = dataclasses.replace(problem, constraints=tuple(problem.constraints) + (rule,),
-                                  restarts=1)  # fmt: skip
+        rule = cn.Orient(
+            seg,
+            tuple(local / np.linalg.norm(local)),
+            cn.Rel.OPP,
+            BodyAxis(tname, tuple(nl)),
+            tol=HEAD_ON_SEGMENT,
+            label="head-on",
+        )
+        aug = dataclasses.replace(
+            problem, constraints=tuple(problem.constraints) + (rule,), restarts=1
+        )
         observer, solver.on_solve = solver.on_solve, None  # not one of the caller's solves
         try:
             q = solver.solve(aug, q0).qpos

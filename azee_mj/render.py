@@ -71,8 +71,13 @@ _PROBE = (
 def _probe(backend: str) -> bool:
     env = {k: v for k, v in os.environ.items() if k != "PYOPENGL_PLATFORM"}
     try:
-        r = subprocess.run([sys.executable, "-c", _PROBE, backend], env=env, check=False,
-                           capture_output=True, timeout=60)  # fmt: skip
+        r = subprocess.run(
+            [sys.executable, "-c", _PROBE, backend],
+            env=env,
+            check=False,
+            capture_output=True,
+            timeout=60,
+        )
     except (OSError, subprocess.TimeoutExpired):
         return False
     return r.returncode == 0
@@ -207,8 +212,15 @@ class FrameRenderer:
     scales down; ``antialias=False`` renders at ``size`` (about 1.5 times as fast in
     software GL, with jagged edges). Use as a context manager."""
 
-    def __init__(self, clip: Clip | None = None, *, camera: str = "front", size=DEFAULT_SIZE,
-                 targets: bool = False, antialias: bool = True):  # fmt: skip
+    def __init__(
+        self,
+        clip: Clip | None = None,
+        *,
+        camera: str = "front",
+        size=DEFAULT_SIZE,
+        targets: bool = False,
+        antialias: bool = True,
+    ):
         gl_backend()
         self.size = (int(size[0]), int(size[1]))
         self.render_size = render_size(self.size, antialias)
@@ -231,8 +243,9 @@ class FrameRenderer:
         # whichever renderer draws it, first or not. This also compiles the shaders.
         self.draw(self.model.qpos0, out=self._full)
 
-    def draw(self, q: np.ndarray, items: Sequence[Marker] = (),
-             out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    def draw(
+        self, q: np.ndarray, items: Sequence[Marker] = (), out: np.ndarray | None = None
+    ) -> np.ndarray:
         """(H, W, 3) uint8 image of posture ``q`` with ``items`` drawn over it, at
         ``render_size`` (written into ``out`` if given)."""
         d = self.data
@@ -243,8 +256,9 @@ class FrameRenderer:
             add_markers(self.r.scene, items)
         return self.r.render(out=out)
 
-    def render(self, q: np.ndarray, frame: int | None = None,
-               out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    def render(
+        self, q: np.ndarray, frame: int | None = None, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """(H, W, 3) uint8 image of posture ``q`` at ``size`` (written into ``out`` if
         given); markers of clip frame ``frame`` if any."""
         items = self.decorations(frame) if self.decorations is not None else ()
@@ -276,7 +290,7 @@ def key_frames(clip: Clip) -> list[tuple[str, int]]:
         blocks.sort(key=lambda b: (0.5 * (b.start + b.end), b.path))
         byframe: dict[int, list[str]] = {}  # blocks sharing a middle frame share a tile
         for b in blocks:
-            name = b.path[len(root) + 1:] if b.path.startswith(root + ".") else b.path
+            name = b.path[len(root) + 1 :] if b.path.startswith(root + ".") else b.path
             byframe.setdefault(clip.frame_at(0.5 * (b.start + b.end)), []).append(name)
         if byframe:
             return [(", ".join(names), f) for f, names in byframe.items()]
@@ -302,11 +316,12 @@ def check_render_options(out, size, fps, time, workers: int | None = None) -> No
     """Raise :class:`AzeeError` for an output or option render cannot honour."""
     suffix = Path(out).suffix.lower()
     if suffix not in OUTPUT_SUFFIXES:
-        raise AzeeError(f"-o: unknown output type {Path(out).suffix or '(none)'!r} of {out}; "
-                        f"valid: {', '.join(OUTPUT_SUFFIXES)}")  # fmt: skip
+        raise AzeeError(
+            f"-o: unknown output type {Path(out).suffix or '(none)'!r} of {out}; "
+            f"valid: {', '.join(OUTPUT_SUFFIXES)}"
+        )
     if suffix == ".mp4" and (size[0] % 2 or size[1] % 2):
-        raise AzeeError(f"--size: an .mp4 needs an even width and height, got "
-                        f"{size[0]}x{size[1]}")  # fmt: skip
+        raise AzeeError(f"--size: an .mp4 needs an even width and height, got {size[0]}x{size[1]}")
     if fps is not None and not (0 < fps <= 240):
         raise AzeeError(f"--fps: must be in (0, 240], got {fps:g}")
     if time is not None and suffix != ".png":
@@ -321,8 +336,9 @@ def _need(module: str):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise AzeeError(f"rendering needs the package {module.split('.')[0]!r}: "
-                        f"{RENDER_HINT}") from None  # fmt: skip
+        raise AzeeError(
+            f"rendering needs the package {module.split('.')[0]!r}: {RENDER_HINT}"
+        ) from None
 
 
 def render(
@@ -356,8 +372,9 @@ def render(
     if camera not in CAMERAS:
         raise AzeeError(f"--camera: unknown camera {camera!r}; valid: {', '.join(CAMERAS)}")
     if time is not None and not (-1e-9 <= time <= clip.duration + 1e-9):
-        raise AzeeError(f"--time: {time:g} s is outside the rollout, which spans "
-                        f"0..{clip.duration:g} s")  # fmt: skip
+        raise AzeeError(
+            f"--time: {time:g} s is outside the rollout, which spans 0..{clip.duration:g} s"
+        )
     suffix = out.suffix.lower()
     tick = progress or (lambda f: None)
     if suffix == ".mp4":
@@ -365,8 +382,9 @@ def render(
     imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
     pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
     if suffix == ".png":
-        with FrameRenderer(clip, camera=camera, size=size, targets=targets,
-                           antialias=antialias) as fr:  # fmt: skip
+        with FrameRenderer(
+            clip, camera=camera, size=size, targets=targets, antialias=antialias
+        ) as fr:
             if time is not None:
                 f = clip.frame_at(time)
                 img = pil.fromarray(fr.render(clip.qpos[f], f))
@@ -389,25 +407,50 @@ def render(
             params = ["-preset", "veryfast"]
             if (rw, rh) != tuple(size):  # supersampled: ffmpeg scales down, in its process
                 params += ["-vf", f"scale={size[0]}:{size[1]}:flags=bicubic"]
-            w = imageio.get_writer(tmp, format="FFMPEG", fps=vfps, codec="libx264", quality=7,
-                                   macro_block_size=2, ffmpeg_log_level="error",
-                                   output_params=params)  # fmt: skip
+            w = imageio.get_writer(
+                tmp,
+                format="FFMPEG",
+                fps=vfps,
+                codec="libx264",
+                quality=7,
+                macro_block_size=2,
+                ffmpeg_log_level="error",
+                output_params=params,
+            )
             with Encoder(w.append_data, (rh, rw, 3), close=w.close) as enc:
-                for k, img in enumerate(render_frames(qs, items, camera=camera, size=size,
-                                                      antialias=antialias, workers=jobs,
-                                                      buffer=enc.buffer)):  # fmt: skip
+                for k, img in enumerate(
+                    render_frames(
+                        qs,
+                        items,
+                        camera=camera,
+                        size=size,
+                        antialias=antialias,
+                        workers=jobs,
+                        buffer=enc.buffer,
+                    )
+                ):
                     enc.put(img)
                     tick((k + 1) / n)
         else:
             frames = []
             quantize = pil.Quantize.MEDIANCUT
-            for k, img in enumerate(render_frames(qs, items, camera=camera, size=size,
-                                                  antialias=antialias, workers=jobs)):  # fmt: skip
+            for k, img in enumerate(
+                render_frames(
+                    qs, items, camera=camera, size=size, antialias=antialias, workers=jobs
+                )
+            ):
                 im = pil.fromarray(downscale(img, size))
                 frames.append(im.quantize(colors=128, method=quantize))
                 tick((k + 1) / n)
-            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
-                           duration=round(1000.0 / vfps), loop=0, optimize=True)  # fmt: skip
+            frames[0].save(
+                tmp,
+                format="GIF",
+                save_all=True,
+                append_images=frames[1:],
+                duration=round(1000.0 / vfps),
+                loop=0,
+                optimize=True,
+            )
     return out
 
 
@@ -462,8 +505,10 @@ def render_frames(
             for q, it in zip(qs, items, strict=True):
                 yield fr.draw(q, it, out=new())
         return
-    with _Workers(workers - 1, camera, size, antialias) as pool, \
-            FrameRenderer(camera=camera, size=size, antialias=antialias) as fr:  # fmt: skip
+    with (
+        _Workers(workers - 1, camera, size, antialias) as pool,
+        FrameRenderer(camera=camera, size=size, antialias=antialias) as fr,
+    ):
         here: dict[int, np.ndarray] = {}  # frames rendered here ahead of their turn
         nxt = 0  # the first frame not yet rendered here nor handed to a worker
         for k in range(n):
@@ -521,8 +566,12 @@ class _Workers:
             done_r, done_w = ctx.Pipe(duplex=False)
             self.todo.append(todo_w)
             self.done.append(done_r)
-            p = ctx.Process(target=_render_worker, daemon=True, name=f"azee-mj render {i + 1}",
-                            args=(job, slots, todo_r, done_w))  # fmt: skip
+            p = ctx.Process(
+                target=_render_worker,
+                daemon=True,
+                name=f"azee-mj render {i + 1}",
+                args=(job, slots, todo_r, done_w),
+            )
             p.start()
             self.procs.append(p)
             todo_r.close()  # the worker's ends: a worker that dies closes its pipes
@@ -557,8 +606,9 @@ class _Workers:
             if self.done[i].poll(0.5):
                 self._receive(i)
             elif self.procs[i].exitcode is not None:
-                raise AzeeError(f"render worker {i + 1} stopped (exit code "
-                                f"{self.procs[i].exitcode})")  # fmt: skip
+                raise AzeeError(
+                    f"render worker {i + 1} stopped (exit code {self.procs[i].exitcode})"
+                )
 
     def take(self, j: int, out: np.ndarray) -> None:
         """Copy frame ``j`` into ``out`` and free its slot."""
@@ -626,8 +676,9 @@ def _render_worker(job: _WorkerJob, slots, todo, done) -> None:
         pass
     except Exception as e:  # noqa: BLE001  (reported to the parent, which raises it)
         with contextlib.suppress(OSError):
-            done.send(str(e) if isinstance(e, AzeeError) else f"rendering failed: "
-                      f"{type(e).__name__}: {e}")  # fmt: skip
+            done.send(
+                str(e) if isinstance(e, AzeeError) else f"rendering failed: {type(e).__name__}: {e}"
+            )
 
 
 class Encoder:
@@ -637,8 +688,13 @@ class Encoder:
     are in flight), :meth:`put` queues it. Leaving the ``with`` block waits for the last
     frame and calls ``close``; an error of ``write`` is raised in the caller's thread."""
 
-    def __init__(self, write: Callable[[np.ndarray], Any], shape: tuple[int, ...],
-                 close: Callable[[], Any] | None = None, queue: int = QUEUE_FRAMES):  # fmt: skip
+    def __init__(
+        self,
+        write: Callable[[np.ndarray], Any],
+        shape: tuple[int, ...],
+        close: Callable[[], Any] | None = None,
+        queue: int = QUEUE_FRAMES,
+    ):
         import queue as q
         import threading
 

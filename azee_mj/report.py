@@ -72,7 +72,7 @@ def _plt():
 
 
 def _short(path: str, root: str) -> str:
-    return path[len(root) + 1:] if path.startswith(root + ".") else path
+    return path[len(root) + 1 :] if path.startswith(root + ".") else path
 
 
 # ---------------------------------------------------------------------------------------
@@ -92,10 +92,25 @@ def fig_timeline(r: Realization):
         y = len(tracks) - 1 - row
         for iv in sched[t]:
             color = _KIND_COLOR.get(kinds.get(iv.block, ""), "#55a868")
-            ax.barh(y, iv.end - iv.start, left=iv.start, height=0.7, color=color,
-                    edgecolor="black", linewidth=0.6)  # fmt: skip
-            ax.text(0.5 * (iv.start + iv.end), y, _short(iv.block, root), ha="center",
-                    va="center", fontsize=8, color="white", clip_on=True)  # fmt: skip
+            ax.barh(
+                y,
+                iv.end - iv.start,
+                left=iv.start,
+                height=0.7,
+                color=color,
+                edgecolor="black",
+                linewidth=0.6,
+            )
+            ax.text(
+                0.5 * (iv.start + iv.end),
+                y,
+                _short(iv.block, root),
+                ha="center",
+                va="center",
+                fontsize=8,
+                color="white",
+                clip_on=True,
+            )
     ax.set_yticks(range(len(tracks)), list(reversed(tracks)))
     ax.set_xlim(0, r.score.duration)
     ax.set_xlabel("time [s]")
@@ -136,12 +151,18 @@ def fig_convergence(r: Realization, k: int = HARDEST):
     fig, ax = plt.subplots(figsize=(10, 4))
     for i in order:
         p, res = r.records[i]
-        labels = sorted({c.label.split("#")[0] for c in p.constraints
-                         if isinstance(c, (cn.Place, cn.Orient, cn.Look))})  # fmt: skip
+        labels = sorted(
+            {
+                c.label.split("#")[0]
+                for c in p.constraints
+                if isinstance(c, (cn.Place, cn.Orient, cn.Look))
+            }
+        )
         name = ", ".join(_short(lb, r.score.root.path) for lb in labels) or "joint targets"
         h = np.maximum(res.history, 1e-12)
-        ax.semilogy(np.arange(1, len(h) + 1), h, marker=".",
-                    label=f"#{i} {name} ({res.iterations} it.)")  # fmt: skip
+        ax.semilogy(
+            np.arange(1, len(h) + 1), h, marker=".", label=f"#{i} {name} ({res.iterations} it.)"
+        )
     ax.set_xlabel("LM iteration")
     ax.set_ylabel("cost (sum of squared rows / tol)")
     ax.set_title(f"Convergence of the {len(order)} hardest IK problems")
@@ -158,16 +179,25 @@ def fig_residuals(r: Realization):
     t = r.rollout.time
     root = r.score.root.path
     fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
-    for ax, unit, scale, name in ((axes[0], "m", 1000.0, "mm"),
-                                  (axes[1], "rad", 180 / np.pi, "deg")):  # fmt: skip
+    for ax, unit, scale, name in (
+        (axes[0], "m", 1000.0, "mm"),
+        (axes[1], "rad", 180 / np.pi, "deg"),
+    ):
         n = 0
         for tr in r.rollout.traces:
             if tr.unit != unit:
                 continue
-            line, = ax.plot(t, tr.values * scale, label=f"{_short(tr.block, root)}#{tr.index} "
-                            f"({tr.kind})")  # fmt: skip
-            ax.hlines(tr.tol * scale, tr.start, tr.end, colors=line.get_color(),
-                      linestyles="dashed", linewidth=0.8)  # fmt: skip
+            (line,) = ax.plot(
+                t, tr.values * scale, label=f"{_short(tr.block, root)}#{tr.index} ({tr.kind})"
+            )
+            ax.hlines(
+                tr.tol * scale,
+                tr.start,
+                tr.end,
+                colors=line.get_color(),
+                linestyles="dashed",
+                linewidth=0.8,
+            )
             n += 1
         ax.set_ylabel(f"residual [{name}]")
         ax.grid(alpha=0.3)
@@ -211,7 +241,8 @@ def _html(r: Realization, images: dict[str, bytes]) -> str:
         worst.setdefault(tr.block, []).append(
             f"#{tr.index} {tr.kind} {tr.worst * scale:.2f} {unit}"
             + ("" if tr.ok else f" (over {tr.tol * scale:.2f})")
-            + (f": {tr.reason}" if tr.reason and not tr.ok else ""))
+            + (f": {tr.reason}" if tr.reason and not tr.ok else "")
+        )
     rows = []
     for b in r.score.blocks():
         detail = ""
@@ -221,13 +252,25 @@ def _html(r: Realization, images: dict[str, bytes]) -> str:
             detail = f"holds {_short(b.hold_of or '', root)}"
         elif b.kind is sc.BlockKind.TRANSPATH:
             detail = f"{b.transpath_site} {type(b.route).__name__.lower()}"
-        rows.append("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in (
-            b.path, b.kind.value, f"{b.start:.3f}", f"{b.end:.3f}", detail,
-            "; ".join(worst.get(b.path, [])))) + "</tr>")  # fmt: skip
+        rows.append(
+            "<tr>"
+            + "".join(
+                f"<td>{html.escape(str(v))}</td>"
+                for v in (
+                    b.path,
+                    b.kind.value,
+                    f"{b.start:.3f}",
+                    f"{b.end:.3f}",
+                    detail,
+                    "; ".join(worst.get(b.path, [])),
+                )
+            )
+            + "</tr>"
+        )
     n_ok = sum(t.ok for t in ro.traces)
     figs = "\n".join(
-        f"<h2>{title}</h2>\n<img alt=\"{key}\" src=\"data:image/png;base64,"
-        f"{base64.b64encode(images[key]).decode()}\">"
+        f'<h2>{title}</h2>\n<img alt="{key}" src="data:image/png;base64,'
+        f'{base64.b64encode(images[key]).decode()}">'
         for key, title, _ in FIGURES
     )
     return f"""<!DOCTYPE html>
@@ -268,8 +311,9 @@ def write_report(
     out_s = str(out)
     as_dir = out_s.endswith(("/", os.sep)) or Path(out).is_dir()
     if not as_dir and Path(out).suffix.lower() not in (".html", ".htm"):
-        raise AzeeError(f"-o: expected REPORT.html or a directory DIR/ for PNG files, got "
-                        f"{out_s!r}")  # fmt: skip
+        raise AzeeError(
+            f"-o: expected REPORT.html or a directory DIR/ for PNG files, got {out_s!r}"
+        )
     fps = check_fps(fps)
     _plt()
     tick = progress or (lambda f: None)

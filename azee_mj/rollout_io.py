@@ -61,7 +61,9 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
         "residual_values": (np.concatenate([t.active for t in tr]) if tr else np.zeros(0)),
         "schedule_track": np.array([i.track for i in ivs], dtype=str),
         "schedule_block": np.array([i.block for i in ivs], dtype=str),
-        "schedule_span": np.array([(i.start, i.end) for i in ivs], dtype=float).reshape(len(ivs), 2),
+        "schedule_span": np.array([(i.start, i.end) for i in ivs], dtype=float).reshape(
+            len(ivs), 2
+        ),
         # wall-clock times stay out of the file (0 here; --report has them): the same score
         # and options give the same bytes in any process
         "stats": np.array([float(getattr(s, k)) if "time" not in k else 0.0 for k in _STATS]),
@@ -88,14 +90,18 @@ def _read_arrays(path) -> dict[str, np.ndarray]:
                     else:
                         shape, _, dtype = np.lib.format.read_array_header_2_0(f)
                 if dtype.hasobject:
-                    raise InputFileError(f"{path}: array {info.filename!r} holds Python "
-                                         "objects; a rollout holds numbers and text")  # fmt: skip
+                    raise InputFileError(
+                        f"{path}: array {info.filename!r} holds Python "
+                        "objects; a rollout holds numbers and text"
+                    )
                 need = int(np.prod(shape, dtype=object)) * dtype.itemsize
                 total += need
                 if need > info.file_size or total > MAX_BYTES:
-                    raise InputFileError(f"{path}: array {info.filename!r} announces shape "
-                                         f"{shorten(str(shape), 60)}, more than the file holds "
-                                         "or than a rollout may be")  # fmt: skip
+                    raise InputFileError(
+                        f"{path}: array {info.filename!r} announces shape "
+                        f"{shorten(str(shape), 60)}, more than the file holds "
+                        "or than a rollout may be"
+                    )
         with np.load(path, allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
     except InputFileError:
@@ -173,33 +179,54 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         for k, v in (("qpos", q), ("site_pos", sp)):
             badf = np.flatnonzero(~np.isfinite(v.reshape(T, -1)).all(axis=1))
             if badf.size:
-                raise bad(f"{k} is not finite at {badf.size} frame(s), first at frame "
-                          f"{badf[0]}")  # fmt: skip
+                raise bad(f"{k} is not finite at {badf.size} frame(s), first at frame {badf[0]}")
 
     schedule: dict[str, list[TrackInterval]] = {}
     if "schedule_track" in a:
         tracks, blocks = text("schedule_track"), text("schedule_block")
         spans = numeric("schedule_span", 2)
         if not (len(tracks) == len(blocks) == len(spans) and spans.shape[1:] == (2,)):
-            raise bad("schedule_track, schedule_block and schedule_span must have one row each "
-                      "per interval, spans (N, 2)")  # fmt: skip
+            raise bad(
+                "schedule_track, schedule_block and schedule_span must have one row each "
+                "per interval, spans (N, 2)"
+            )
         for track, block, (start, end) in zip(tracks, blocks, spans):
             schedule.setdefault(str(track), []).append(
-                TrackInterval(str(track), str(block), float(start), float(end)))
+                TrackInterval(str(track), str(block), float(start), float(end))
+            )
     traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
     st = numeric("stats", 1) if "stats" in a else np.zeros(len(_STATS))
-    if len(st) != len(_STATS) or not np.isfinite(st).all() or (st[:4] < 0).any() or (
-            st[:4] > 2**53).any():  # fmt: skip
+    if (
+        len(st) != len(_STATS)
+        or not np.isfinite(st).all()
+        or (st[:4] < 0).any()
+        or (st[:4] > 2**53).any()
+    ):
         raise bad(f"stats must be {len(_STATS)} finite counts and times")
     its = numeric("stats_iterations", 1) if "stats_iterations" in a else np.zeros(0)
-    stats = SolveStats(int(st[0]), int(st[1]), int(st[2]), int(st[3]), float(st[4]),
-                       float(st[5]), its.astype(np.int64, copy=False) if np.isfinite(its).all()
-                       else np.zeros(0, np.int64))  # fmt: skip
+    stats = SolveStats(
+        int(st[0]),
+        int(st[1]),
+        int(st[2]),
+        int(st[3]),
+        float(st[4]),
+        float(st[5]),
+        its.astype(np.int64, copy=False) if np.isfinite(its).all() else np.zeros(0, np.int64),
+    )
     mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
     if mode_s not in {m.value for m in Mode}:
         raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
-    return Rollout(fps, Mode(mode_s), time, q, tuple(str(n) for n in names), sp,
-                   {k: tuple(v) for k, v in schedule.items()}, tuple(traces), stats)  # fmt: skip
+    return Rollout(
+        fps,
+        Mode(mode_s),
+        time,
+        q,
+        tuple(str(n) for n in names),
+        sp,
+        {k: tuple(v) for k, v in schedule.items()},
+        tuple(traces),
+        stats,
+    )
 
 
 def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:
@@ -208,21 +235,33 @@ def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:
     C = len(names)
     # Files written before the diagnosed reasons were stored have none.
     reasons = text("residual_reasons") if "residual_reasons" in a else np.full(C, "")
-    if not (len(kinds) == len(units) == len(tol) == len(span) == len(reasons) == C
-            and span.shape[1:] == (2,)):  # fmt: skip
+    if not (
+        len(kinds) == len(units) == len(tol) == len(span) == len(reasons) == C
+        and span.shape[1:] == (2,)
+    ):
         raise bad("the residual_* arrays must have one row per constraint")
     if "residual_values" in a:  # sparse
         first, count = numeric("residual_first", 1), numeric("residual_count", 1)
-        if not (np.isfinite(first).all() and np.isfinite(count).all()
-                and (first == np.round(first)).all() and (count == np.round(count)).all()
-                and (np.abs(first) <= MAX_FRAMES).all() and (np.abs(count) <= MAX_FRAMES).all()):
+        if not (
+            np.isfinite(first).all()
+            and np.isfinite(count).all()
+            and (first == np.round(first)).all()
+            and (count == np.round(count)).all()
+            and (np.abs(first) <= MAX_FRAMES).all()
+            and (np.abs(count) <= MAX_FRAMES).all()
+        ):
             raise bad("residual_first and residual_count must be whole numbers")
         first, count = first.astype(np.int64), count.astype(np.int64)
         vals = numeric("residual_values", 1)
-        if len(first) != C or len(count) != C or (first < 0).any() or (count < 0).any() or (
-                first + count > T).any() or count.sum() != len(vals):  # fmt: skip
-            raise bad("residual_first / residual_count do not match the frames and "
-                      "residual_values")  # fmt: skip
+        if (
+            len(first) != C
+            or len(count) != C
+            or (first < 0).any()
+            or (count < 0).any()
+            or (first + count > T).any()
+            or count.sum() != len(vals)
+        ):
+            raise bad("residual_first / residual_count do not match the frames and residual_values")
         offsets = np.concatenate([[0], np.cumsum(count)])
         parts = [(int(first[j]), vals[offsets[j] : offsets[j + 1]]) for j in range(C)]
     else:  # dense (T, C), NaN outside each block
@@ -241,7 +280,19 @@ def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:
         if not sep or not index.isdigit() or len(index) > 9:
             raise bad(f"residual name {shorten(str(name), 60)!r} is not BLOCK#INDEX")
         f0, active = parts[j]
-        out.append(ConstraintTrace(block, int(index), str(kinds[j]), float(tol[j]),
-                                   str(units[j]), float(span[j][0]), float(span[j][1]), f0,
-                                   active, T, str(reasons[j])))  # fmt: skip
+        out.append(
+            ConstraintTrace(
+                block,
+                int(index),
+                str(kinds[j]),
+                float(tol[j]),
+                str(units[j]),
+                float(span[j][0]),
+                float(span[j][1]),
+                f0,
+                active,
+                T,
+                str(reasons[j]),
+            )
+        )
     return out

@@ -31,8 +31,11 @@ CLAVICLE_WEIGHT = 3.0
 
 def joint_weights(signer_map: SignerMap) -> dict[str, float]:
     """Joint name -> weight for :class:`~azee_mj.ik.Solver` from the tracks of ``signer_map``."""
-    return {j: TRACK_WEIGHTS.get(track, CLAVICLE_WEIGHT if "clav" in j else 1.0)
-            for track, joints in signer_map.tracks.items() for j in joints}  # fmt: skip
+    return {
+        j: TRACK_WEIGHTS.get(track, CLAVICLE_WEIGHT if "clav" in j else 1.0)
+        for track, joints in signer_map.tracks.items()
+        for j in joints
+    }
 
 
 def make_solver(
@@ -44,8 +47,9 @@ def make_solver(
     the joint weights of ``signer_map`` (default :data:`~azee_mj.sites.DEFAULT_MAP`);
     ``options`` go to the solver (``seed``, ``max_iter``, ``on_solve``, ...)."""
     smap = signer_map or DEFAULT_MAP
-    solver = ik.Solver(MODEL_PATH if model is None else model, joint_weights=joint_weights(smap),
-                       **options)  # fmt: skip
+    solver = ik.Solver(
+        MODEL_PATH if model is None else model, joint_weights=joint_weights(smap), **options
+    )
     solver.set_naturalness(natural.from_signer_map(solver.model, smap, solver.natural))
     if "seeder" not in options:
         solver.seeder = branch_seeder(solver, smap)
@@ -57,8 +61,11 @@ def branch_seeder(solver: ik.Solver, smap: SignerMap):
     placed hands turned and each arm on other elbow-swivel branches
     (:func:`azee_mj.reach.swivel_seeds`)."""
     m = solver.model
-    arms = [a for a in reach.arms_of(smap)
-            if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, a.hand) >= 0]  # fmt: skip
+    arms = [
+        a
+        for a in reach.arms_of(smap)
+        if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, a.hand) >= 0
+    ]
     if not arms:
         return None
     hands = [(a, solver.body_id(a.hand)) for a in arms]
@@ -104,8 +111,11 @@ class Compiler:
         for track, joints in smap.tracks.items():
             for j in joints:
                 self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
-        self.forearms = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, smap.bones[b].body)
-                         for b in ("f_arm_L", "f_arm_R") if b in smap.bones]  # fmt: skip
+        self.forearms = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, smap.bones[b].body)
+            for b in ("f_arm_L", "f_arm_R")
+            if b in smap.bones
+        ]
 
     # expressions
     def site(self, ref: sc.SiteRef) -> str:
@@ -119,11 +129,13 @@ class Compiler:
         if isinstance(c, sc.Orient):
             b = c.bone.bone_map(self.smap)
             local = b.dir if c.axis is sc.Axis.DIR else b.nrm
-            return cn.Orient(b.body, local, c.rel, compile_vector(c.vector, self.smap), c.tol,
-                             label)  # fmt: skip
+            return cn.Orient(
+                b.body, local, c.rel, compile_vector(c.vector, self.smap), c.tol, label
+            )
         if isinstance(c, sc.Look):
-            eyes = tuple((self.smap.bones[e].body, self.smap.bones[e].dir)
-                         for e in ("eye_L", "eye_R"))  # fmt: skip
+            eyes = tuple(
+                (self.smap.bones[e].body, self.smap.bones[e].dir) for e in ("eye_L", "eye_R")
+            )
             return cn.Look(eyes, compile_point(c.at, self.smap), np.deg2rad(1.0), label)
         return None
 
@@ -135,8 +147,9 @@ class Compiler:
         """Tracks owning the joints of ``body`` (and, unless ``own_only``, its ancestors')."""
         out: set[str] = set()
         while body > 0:
-            for j in range(self.m.body_jntadr[body],
-                           self.m.body_jntadr[body] + self.m.body_jntnum[body]):  # fmt: skip
+            for j in range(
+                self.m.body_jntadr[body], self.m.body_jntadr[body] + self.m.body_jntnum[body]
+            ):
                 if j in self.joint_track:
                     out.add(self.joint_track[j])
             if own_only and out:
@@ -176,8 +189,11 @@ class Compiler:
             sites = [] if c.at.ref.locus else [self.site(c.at.ref)]
         else:
             sites = [self.site(r) for r in sc.referenced_sites(c.at) if not r.locus]
-        return tuple(s for s in sites if self.on_forearm(s)
-                     and any(t.startswith("arm") for t in self.site_tracks(s) - own))  # fmt: skip
+        return tuple(
+            s
+            for s in sites
+            if self.on_forearm(s) and any(t.startswith("arm") for t in self.site_tracks(s) - own)
+        )
 
     def on_forearm(self, site: str) -> bool:
         """Whether model ``site`` rides on a forearm or hand (a part the other arm brings to
@@ -271,12 +287,16 @@ class Schedule:
         self.home = solver.natural.copy()
         self.blocks = [b for b in score.blocks()]
         self.by_path = {b.path: b for b in self.blocks}
-        self.hands = [solver.body_id(self.smap.bones[f"palm_{x}"].body)
-                      for x in ("L", "R") if f"palm_{x}" in self.smap.bones]  # fmt: skip
+        self.hands = [
+            solver.body_id(self.smap.bones[f"palm_{x}"].body)
+            for x in ("L", "R")
+            if f"palm_{x}" in self.smap.bones
+        ]
         self.contacts = self._contact_windows()
         self._moved_cache: dict = {}
-        self.body_names = [mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
-                           for b in range(self.m.nbody)]  # fmt: skip
+        self.body_names = [
+            mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(self.m.nbody)
+        ]
 
     def _contact_windows(self) -> list[ContactWindow]:
         """The windows of the body pairs each contact constraint of the score may bring
@@ -286,11 +306,14 @@ class Schedule:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
                 partners = self.comp.contact_sites(c)
                 if partners:
-                    mine = self.part(int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))]))
+                    mine = self.part(
+                        int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
+                    )
                 for s in partners:
                     other = self.part(int(self.m.site_bodyid[self.solver.site_id(s)]))
-                    out += [ContactWindow(b.start, b.end, x, y) for x in mine for y in other
-                            if x != y]  # fmt: skip
+                    out += [
+                        ContactWindow(b.start, b.end, x, y) for x in mine for y in other if x != y
+                    ]
         return out
 
     def part(self, body: int) -> tuple[int, ...]:
@@ -299,7 +322,6 @@ class Schedule:
             if descends(self.m, body, hand):
                 return tuple(b for b in range(self.m.nbody) if descends(self.m, b, hand))
         return (body,)
-
 
     def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
@@ -365,20 +387,23 @@ class Schedule:
         if c not in self._moved_cache:
             bodies = self.solver.bodies_of(c)
             self._moved_cache[c] = set().union(
-                *(self.comp.body_tracks(b, own_only=False) for b in bodies))
+                *(self.comp.body_tracks(b, own_only=False) for b in bodies)
+            )
         return self._moved_cache[c]
 
 
-def schedule(score: sc.Score | str, solver: ik.Solver | None = None
-             ) -> dict[str, tuple[TrackInterval, ...]]:
+def schedule(
+    score: sc.Score | str, solver: ik.Solver | None = None
+) -> dict[str, tuple[TrackInterval, ...]]:
     """Per track, the intervals blocks drive it, without solving anything."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     return Schedule(score, solver or make_solver()).intervals()
 
 
-def contact_pairs(score: sc.Score | str | Mapping, times: np.ndarray,
-                  solver: ik.Solver | None = None) -> dict[int, frozenset[tuple[str, str]]]:
+def contact_pairs(
+    score: sc.Score | str | Mapping, times: np.ndarray, solver: ik.Solver | None = None
+) -> dict[int, frozenset[tuple[str, str]]]:
     """Frame -> body-name pairs that a contact constraint active then brings together."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)

@@ -29,11 +29,36 @@ FINGERS = ("index", "middle", "ring", "little")
 MIDLINE_STEMS = ("HEAD", "FH", "NO", "NSP", "MO", "TO", "CH", "BEB", "NK", "ST", "AB", "ABST")
 #: Lateral stems: the AZee name is ``STEM_L`` / ``STEM_R``.
 LATERAL_STEMS = (
-    "EB", "EBi", "EBe", "EYE", "TE", "CK", "EAR", "LOBE", "MO", "NO", "NK",
-    "ST", "AB", "ABST", "SH", "ARMpit",
-    "ARM", "ARMsh", "EL", "ELi", "F_ARM", "F_ARMi", "WR", "WRt", "WRi",
-    "PA", "H_BACK", "H_EDGE", "viande",
-)  # fmt: skip
+    "EB",
+    "EBi",
+    "EBe",
+    "EYE",
+    "TE",
+    "CK",
+    "EAR",
+    "LOBE",
+    "MO",
+    "NO",
+    "NK",
+    "ST",
+    "AB",
+    "ABST",
+    "SH",
+    "ARMpit",
+    "ARM",
+    "ARMsh",
+    "EL",
+    "ELi",
+    "F_ARM",
+    "F_ARMi",
+    "WR",
+    "WRt",
+    "WRi",
+    "PA",
+    "H_BACK",
+    "H_EDGE",
+    "viande",
+)
 #: Per-digit stems: ``X_STEM_side`` (e.g. ``I_TIP_R``).
 DIGIT_STEMS = ("TIP", "PAD", "NA")
 #: Per-phalanx stems: ``X_STEM_side_n`` (e.g. ``L_KN_L_1``), n = 1 proximal .. 3 distal.
@@ -80,7 +105,7 @@ def resolve_side(side: str, strong_side: str = "R") -> str:
     raise ValueError(f"side {side!r} is not one of 's', 'w', 'R', 'L'")
 
 
-def suggest(name: str, valid: "list[str] | tuple[str, ...]") -> str:
+def suggest(name: str, valid: list[str] | tuple[str, ...]) -> str:
     """A ``"; did you mean 'X'?"`` suffix for the closest valid name, or ``""``."""
     match = difflib.get_close_matches(name, list(valid), n=1, cutoff=0.6)
     return f"; did you mean {match[0]!r}?" if match else ""
@@ -136,7 +161,8 @@ class SignerMap:
     morphs: Mapping[str, Morph]
     tracks: Mapping[str, tuple[str, ...]]
     normals: Mapping[str, tuple[float, float, float]] = dataclasses.field(
-        default_factory=lambda: MappingProxyType({}))  # fmt: skip
+        default_factory=lambda: MappingProxyType({})
+    )
     interior: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
@@ -153,7 +179,7 @@ class SignerMap:
             "interior": list(self.interior),
         }
 
-    def renamed(self, rename_site=None, rename_body=None, rename_joint=None) -> "SignerMap":
+    def renamed(self, rename_site=None, rename_body=None, rename_joint=None) -> SignerMap:
         """A copy for a model whose names differ by the given functions (str -> str)."""
         rs = rename_site or (lambda s: s)
         rb = rename_body or (lambda s: s)
@@ -166,8 +192,9 @@ class SignerMap:
             loci=_frozen({k: rs(v) for k, v in self.loci.items()}),
             morphs=_frozen(
                 {
-                    k: Morph(_frozen({_rename_templ(j, rj): v for j, v in m.changes.items()}),
-                             m.sided)
+                    k: Morph(
+                        _frozen({_rename_templ(j, rj): v for j, v in m.changes.items()}), m.sided
+                    )
                     for k, m in self.morphs.items()
                 }
             ),
@@ -212,16 +239,33 @@ def _mirror(v) -> tuple[float, float, float]:
 #: 8.5 mm) are flush with the palm's face; its pad faces the index finger (ulnar, in the
 #: palm plane), so that MCP and IP flexion curl it across the palm.
 _THUMB_DIVERGE, _THUMB_TILT = np.radians(25.0), np.radians(3.0)
-THUMB_DIR_R = _unit((np.sin(_THUMB_DIVERGE) * np.cos(_THUMB_TILT), np.sin(_THUMB_TILT),
-                     -np.cos(_THUMB_DIVERGE) * np.cos(_THUMB_TILT)))  # fmt: skip
+THUMB_DIR_R = _unit(
+    (
+        np.sin(_THUMB_DIVERGE) * np.cos(_THUMB_TILT),
+        np.sin(_THUMB_TILT),
+        -np.cos(_THUMB_DIVERGE) * np.cos(_THUMB_TILT),
+    )
+)
 THUMB_NRM_R = _unit(np.cross((0.0, 1.0, 0.0), THUMB_DIR_R))
 #: The thumb of the `fist` morph [rad]: abducted out of the palm plane and curled over the
 #: index and middle fingers' middle phalanges.
-FIST_THUMB = MappingProxyType({"thumb_{X}_1_flex": -0.2, "thumb_{X}_1_abd": 0.9,
-                               "thumb_{X}_2_flex": 0.5, "thumb_{X}_3_flex": 0.9})  # fmt: skip
+FIST_THUMB = MappingProxyType(
+    {
+        "thumb_{X}_1_flex": -0.2,
+        "thumb_{X}_1_abd": 0.9,
+        "thumb_{X}_2_flex": 0.5,
+        "thumb_{X}_3_flex": 0.9,
+    }
+)
 #: A thumb-up hand's thumb [rad]: straight, along the radial side of the closed fingers.
-THUMB_UP = MappingProxyType({"thumb_{X}_1_flex": -0.2, "thumb_{X}_1_abd": 0.15,
-                             "thumb_{X}_2_flex": 0.0, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+THUMB_UP = MappingProxyType(
+    {
+        "thumb_{X}_1_flex": -0.2,
+        "thumb_{X}_1_abd": 0.15,
+        "thumb_{X}_2_flex": 0.0,
+        "thumb_{X}_3_flex": 0.0,
+    }
+)
 #: Thumb MCP flexion [rad] that lays the adducted thumb's phalanges along the index finger.
 THUMB_FLAT_MCP = round(float(np.radians(25.0)), 6)
 
@@ -275,11 +319,16 @@ def _bundled_tracks() -> dict[str, tuple[str, ...]]:
     }
     for s in SIDES:
         tracks[f"arm_{s}"] = [
-            f"clav_{s}_elev", f"clav_{s}_prot",
-            f"arm_{s}_flex", f"arm_{s}_abd", f"arm_{s}_rot",
-            f"f_arm_{s}_flex", f"f_arm_{s}_pron",
-            f"palm_{s}_flex", f"palm_{s}_dev",
-        ]  # fmt: skip
+            f"clav_{s}_elev",
+            f"clav_{s}_prot",
+            f"arm_{s}_flex",
+            f"arm_{s}_abd",
+            f"arm_{s}_rot",
+            f"f_arm_{s}_flex",
+            f"f_arm_{s}_pron",
+            f"palm_{s}_flex",
+            f"palm_{s}_dev",
+        ]
         hand = [f"thumb_{s}_1_flex", f"thumb_{s}_1_abd", f"thumb_{s}_2_flex", f"thumb_{s}_3_flex"]
         for f in FINGERS:
             hand += [f"{f}_{s}_1_flex", f"{f}_{s}_1_spread", f"{f}_{s}_2_flex", f"{f}_{s}_3_flex"]
@@ -331,12 +380,15 @@ HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
     "h": _hs(_T_ACROSS, _STRAIGHT, _STRAIGHT, _CLOSED, _CLOSED),
     "3": _hs(_T_OUT, _sp(_STRAIGHT, 0.25), _sp(_STRAIGHT, -0.15), _CLOSED, _CLOSED),
     "w": _hs(_T_IN, _sp(_STRAIGHT, 0.25), _STRAIGHT, _sp(_STRAIGHT, -0.25), _CLOSED),
-    "4": _hs(_T_IN, _sp(_STRAIGHT, 0.15), _STRAIGHT, _sp(_STRAIGHT, -0.1),
-             _sp(_STRAIGHT, -0.2)),
-    "5": _hs(_T_OUT, _sp(_STRAIGHT, 0.3), _STRAIGHT, _sp(_STRAIGHT, -0.2),
-             _sp(_STRAIGHT, -0.4)),
-    "claw": _hs((-0.3, 0.3, 0.5, 0.5), (0.3, 0.3, 1.0, 0.8), (0.3, 0.0, 1.0, 0.8),
-                (0.3, -0.2, 1.0, 0.8), (0.3, -0.4, 1.0, 0.8)),
+    "4": _hs(_T_IN, _sp(_STRAIGHT, 0.15), _STRAIGHT, _sp(_STRAIGHT, -0.1), _sp(_STRAIGHT, -0.2)),
+    "5": _hs(_T_OUT, _sp(_STRAIGHT, 0.3), _STRAIGHT, _sp(_STRAIGHT, -0.2), _sp(_STRAIGHT, -0.4)),
+    "claw": _hs(
+        (-0.3, 0.3, 0.5, 0.5),
+        (0.3, 0.3, 1.0, 0.8),
+        (0.3, 0.0, 1.0, 0.8),
+        (0.3, -0.2, 1.0, 0.8),
+        (0.3, -0.4, 1.0, 0.8),
+    ),
     "l": _hs(_T_OUT, _STRAIGHT, _CLOSED, _CLOSED, _CLOSED),
     "y": _hs(_T_OUT, _CLOSED, _CLOSED, _CLOSED, _sp(_STRAIGHT, -0.4)),
     "i": _hs(_T_ACROSS, _CLOSED, _CLOSED, _CLOSED, _STRAIGHT),
@@ -347,10 +399,9 @@ HANDSHAPES: dict[str, tuple[tuple[float, ...], ...]] = {
     "c": _hs((0.0, 0.35, 0.1, 0.1), *[(0.6, 0.0, 0.7, 0.4)] * 4),
     "o": _hs(_T_OPP, *[_CURVED] * 4),
     "flat_o": _hs((0.4, 0.7, 0.1, -0.05), *[(1.05, 0.0, 0.35, 0.2)] * 4),
-    "f": _hs(_T_PINCH, _I_PINCH, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15),
-             _sp(_STRAIGHT, -0.3)),
+    "f": _hs(_T_PINCH, _I_PINCH, _sp(_STRAIGHT, 0.05), _sp(_STRAIGHT, -0.15), _sp(_STRAIGHT, -0.3)),
     "pinch": _hs(_T_PINCH, _I_PINCH, _CLOSED, _CLOSED, _CLOSED),
-}  # fmt: skip
+}
 
 
 def handshape_changes(name: str) -> dict[str, float]:
@@ -358,8 +409,12 @@ def handshape_changes(name: str) -> dict[str, float]:
     thumb, *fingers = HANDSHAPES[name]
     out = {f"thumb_{{X}}_{j}": v for j, v in zip(_THUMB, thumb)}
     for f, angles in zip(FINGERS, fingers):
-        out.update({f"{f}_{{X}}_{j}": v
-                    for j, v in zip(("1_flex", "1_spread", "2_flex", "3_flex"), angles)})
+        out.update(
+            {
+                f"{f}_{{X}}_{j}": v
+                for j, v in zip(("1_flex", "1_spread", "2_flex", "3_flex"), angles)
+            }
+        )
     return out
 
 
@@ -370,8 +425,10 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
         m[f"{f}_bend"] = ({f"{f}_{{X}}_1_flex": 1.45}, True)
         m[f"{f}_hook"] = ({f"{f}_{{X}}_2_flex": 1.5, f"{f}_{{X}}_3_flex": 1.2}, True)
     # (the thumb leaves the palm plane, palmar, before it curls: it curls across the palm)
-    m["thumb_bend"] = ({"thumb_{X}_1_abd": 0.5, "thumb_{X}_2_flex": 0.9,
-                        "thumb_{X}_3_flex": 0.6}, True)  # fmt: skip
+    m["thumb_bend"] = (
+        {"thumb_{X}_1_abd": 0.5, "thumb_{X}_2_flex": 0.9, "thumb_{X}_3_flex": 0.6},
+        True,
+    )
     m["thumb_hook"] = ({"thumb_{X}_1_abd": 0.3, "thumb_{X}_3_flex": 1.2}, True)
     m["thumb_opposed"] = ({"thumb_{X}_1_flex": 0.5, "thumb_{X}_1_abd": 0.9}, True)
     m["thumb_spread"] = ({"thumb_{X}_1_flex": -0.4, "thumb_{X}_1_abd": 0.2}, True)
@@ -382,20 +439,38 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     m["thumb_extended"] = ({j: THUMB_UP[j] - FIST_THUMB[j] for j in FIST_THUMB}, True)
     # The thumb spreads too: it lies along the index finger, which spreads toward it.
     m["fingers_spread"] = (
-        {"index_{X}_1_spread": 0.3, "middle_{X}_1_spread": 0.0, "ring_{X}_1_spread": -0.2,
-         "little_{X}_1_spread": -0.4, "thumb_{X}_1_abd": 0.3},
+        {
+            "index_{X}_1_spread": 0.3,
+            "middle_{X}_1_spread": 0.0,
+            "ring_{X}_1_spread": -0.2,
+            "little_{X}_1_spread": -0.4,
+            "thumb_{X}_1_abd": 0.3,
+        },
         True,
-    )  # fmt: skip
-    fist = {j: v for f in FINGERS for j, v in
-            ((f"{f}_{{X}}_1_flex", 1.5), (f"{f}_{{X}}_2_flex", 1.65), (f"{f}_{{X}}_3_flex", 1.0))}
+    )
+    fist = {
+        j: v
+        for f in FINGERS
+        for j, v in (
+            (f"{f}_{{X}}_1_flex", 1.5),
+            (f"{f}_{{X}}_2_flex", 1.65),
+            (f"{f}_{{X}}_3_flex", 1.0),
+        )
+    }
     # thumb curled over the index and middle fingers' middle phalanges, 1 mm clear of them
     fist.update(FIST_THUMB)
     m["fist"] = (fist, True)
     flat = {j: 0.0 for j in _finger_joints()}
     flat.update({f"{f}_{{X}}_1_spread": 0.0 for f in FINGERS})
     # the thumb adducted along the index finger, in the palm plane (its phalanges parallel)
-    flat.update({"thumb_{X}_1_flex": 0.0, "thumb_{X}_1_abd": 0.0,
-                 "thumb_{X}_2_flex": THUMB_FLAT_MCP, "thumb_{X}_3_flex": 0.0})  # fmt: skip
+    flat.update(
+        {
+            "thumb_{X}_1_flex": 0.0,
+            "thumb_{X}_1_abd": 0.0,
+            "thumb_{X}_2_flex": THUMB_FLAT_MCP,
+            "thumb_{X}_3_flex": 0.0,
+        }
+    )
     m["flat"] = (flat, True)
     for name in HANDSHAPES:  # the rest hand is at 0 on every hand joint
         m[f"hs_{name}"] = (handshape_changes(name), True)
@@ -463,8 +538,15 @@ _NORMALS = {
 
 #: Digit sites' normals from the phalanx's bone axes: ``+1`` / ``-1`` times NRM (pad /
 #: back), or DIR (the tip).
-_DIGIT_NORMALS = {"KN": ("nrm", -1), "KNi": ("nrm", 1), "BACK": ("nrm", -1), "INT": ("nrm", 1),
-                  "PAD": ("nrm", 1), "NA": ("nrm", -1), "TIP": ("dir", 1)}  # fmt: skip
+_DIGIT_NORMALS = {
+    "KN": ("nrm", -1),
+    "KNi": ("nrm", 1),
+    "BACK": ("nrm", -1),
+    "INT": ("nrm", 1),
+    "PAD": ("nrm", 1),
+    "NA": ("nrm", -1),
+    "TIP": ("dir", 1),
+}
 
 
 def _bundled_normals(bones: Mapping[str, BoneMap]) -> dict[str, tuple[float, float, float]]:

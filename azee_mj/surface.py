@@ -28,7 +28,7 @@ def _ellipsoid(p: np.ndarray, r: np.ndarray) -> tuple[float, np.ndarray]:
         return np.sum((r * p / (r * r + t)) ** 2) - 1.0
 
     if f < 1.0:
-        lo, hi = -float(np.min(r)) ** 2, 0.0
+        lo, hi = -(float(np.min(r)) ** 2), 0.0
     else:
         lo, hi = 0.0, float(np.linalg.norm(p) * np.max(r))
         while g(hi) > 0:
@@ -75,26 +75,32 @@ def local_distance(geom_type: int, size, p) -> tuple[float, np.ndarray]:
     raise ValueError(f"geom type {geom_type} is not a sphere, capsule, ellipsoid or box")
 
 
-def geom_distance(model: mujoco.MjModel, data: mujoco.MjData, geom: int,
-                  point) -> tuple[float, np.ndarray]:  # fmt: skip
+def geom_distance(
+    model: mujoco.MjModel, data: mujoco.MjData, geom: int, point
+) -> tuple[float, np.ndarray]:
     """Signed distance [m] from the world ``point`` to geom ``geom`` on the posture in
     ``data`` (after ``mj_kinematics``), and the outward unit normal (world)."""
     R = data.geom_xmat[geom].reshape(3, 3)
-    d, n = local_distance(model.geom_type[geom], model.geom_size[geom],
-                          R.T @ (np.asarray(point, float) - data.geom_xpos[geom]))  # fmt: skip
+    d, n = local_distance(
+        model.geom_type[geom],
+        model.geom_size[geom],
+        R.T @ (np.asarray(point, float) - data.geom_xpos[geom]),
+    )
     return d, R @ n
 
 
 def collision_geoms(model: mujoco.MjModel, body: int) -> list[int]:
     """The geoms of ``body`` that collide (``contype`` or ``conaffinity`` set)."""
     return [
-        g for g in range(model.ngeom)
+        g
+        for g in range(model.ngeom)
         if model.geom_bodyid[g] == body and (model.geom_contype[g] or model.geom_conaffinity[g])
-    ]  # fmt: skip
+    ]
 
 
-def skin_distance(model: mujoco.MjModel, data: mujoco.MjData, body: int,
-                  point) -> tuple[float, np.ndarray, int]:  # fmt: skip
+def skin_distance(
+    model: mujoco.MjModel, data: mujoco.MjData, body: int, point
+) -> tuple[float, np.ndarray, int]:
     """Signed distance [m] from the world ``point`` to the skin of ``body`` (the union of its
     collision geoms: the least of their distances, exact outside, a bound inside), the
     outward unit normal there (world) and the geom it is on. Raises ValueError for a body

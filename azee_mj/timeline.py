@@ -29,6 +29,7 @@ Units: seconds, metres, radians.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time as _time
 from collections.abc import Callable, Mapping
 
@@ -46,8 +47,16 @@ from azee_mj.schedule import DrivenConstraint, Schedule, TrackInterval, descends
 from azee_mj.sites import DEFAULT_MAP, DIGITS, SignerMap
 from azee_mj.timing import check_fps, frame_count, frame_range
 
-__all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "realize",
-           "residual_summary", "score_traces"]
+__all__ = [
+    "ConstraintTrace",
+    "Mode",
+    "Realizer",
+    "Rollout",
+    "SolveStats",
+    "realize",
+    "residual_summary",
+    "score_traces",
+]
 
 # ---------------------------------------------------------------------------------------
 # Records
@@ -57,8 +66,19 @@ __all__ = ["ConstraintTrace", "Mode", "Realizer", "Rollout", "SolveStats", "real
 #: How nearly two skin surfaces a placement joins face each other [rad], by the hand part
 #: that touches: flat parts of the hand meet flat, a finger pad nearly so, a fingertip or a
 #: knuckle touches at an angle (a finger does not point straight into the face).
-FACING_TOL = {"PA": 5.0, "H_BACK": 5.0, "H_EDGE": 10.0, "viande": 20.0, "PAD": 30.0,
-              "TIP": 20.0, "NA": 45.0, "KN": 45.0, "KNi": 45.0, "BACK": 45.0, "INT": 45.0}
+FACING_TOL = {
+    "PA": 5.0,
+    "H_BACK": 5.0,
+    "H_EDGE": 10.0,
+    "viande": 20.0,
+    "PAD": 30.0,
+    "TIP": 20.0,
+    "NA": 45.0,
+    "KN": 45.0,
+    "KNi": 45.0,
+    "BACK": 45.0,
+    "INT": 45.0,
+}
 #: How much wider the facing tolerance of two joined hands gets when head-on they would
 #: meet only behind the back (the realizer then joins them in front, leaning).
 FACING_WIDEN = 2.0
@@ -86,6 +106,7 @@ FACING_TOL_ROUNDED = {"SH": 45.0, "FH": 40.0, "TE": 40.0}
 def _facing_tol(a: str, b: str) -> float:
     """The facing tolerance [rad] of AZee sites ``a`` and ``b`` brought together: the hand
     part's, widened for a rounded part of the body."""
+
     def hand(site: str) -> float:
         parts = site.split("_")
         if len(parts) > 1 and parts[0] in DIGITS and parts[1] in FACING_TOL:
@@ -93,8 +114,14 @@ def _facing_tol(a: str, b: str) -> float:
         return next((t for stem, t in FACING_TOL.items() if site.startswith(stem + "_")), 0.0)
 
     def rounded(site: str) -> float:
-        return next((t for stem, t in FACING_TOL_ROUNDED.items()
-                     if site == stem or site.startswith(stem + "_")), 0.0)  # fmt: skip
+        return next(
+            (
+                t
+                for stem, t in FACING_TOL_ROUNDED.items()
+                if site == stem or site.startswith(stem + "_")
+            ),
+            0.0,
+        )
 
     tol = max(hand(a), hand(b)) or FACING_TOL_BODY
     return np.radians(max(tol, rounded(a), rounded(b)))
@@ -108,6 +135,7 @@ UPRIGHT_TOL_DEG = 3.0
 LEAN_STEPS = 5
 #: Tracks that return to neutral when no block needs them.
 RELAXING = ("spine", "head")
+
 
 @dataclasses.dataclass(frozen=True)
 class ConstraintTrace:
@@ -153,8 +181,10 @@ class ConstraintTrace:
         """``BLOCK constraint i (kind): worst X mm (tol Y mm)``, in mm or degrees."""
         k, u = (1000.0, "mm") if self.unit == "m" else (float(np.degrees(1.0)), "deg")
         why = f": {self.reason}" if self.reason and not self.ok else ""
-        return (f"{self.block} constraint {self.index} ({self.kind}): worst {self.worst * k:.2f}"
-                f" {u} (tol {self.tol * k:.2f} {u}){why}")
+        return (
+            f"{self.block} constraint {self.index} ({self.kind}): worst {self.worst * k:.2f}"
+            f" {u} (tol {self.tol * k:.2f} {u}){why}"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,21 +231,31 @@ class Rollout:
             "frames": len(self.time),
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
             "constraints": [
-                {"block": t.block, "index": t.index, "kind": t.kind, "unit": t.unit,
-                 "tol": float(t.tol), "worst": t.worst if np.isfinite(t.worst) else None,
-                 "ok": bool(t.ok), "reason": t.reason}
+                {
+                    "block": t.block,
+                    "index": t.index,
+                    "kind": t.kind,
+                    "unit": t.unit,
+                    "tol": float(t.tol),
+                    "worst": t.worst if np.isfinite(t.worst) else None,
+                    "ok": bool(t.ok),
+                    "reason": t.reason,
+                }
                 for t in self.traces
-            ],  # fmt: skip
+            ],
             "all_within_tolerance": bool(all(t.ok for t in self.traces)),
             "schedule": {
                 k: [{"block": i.block, "start": i.start, "end": i.end} for i in v]
                 for k, v in self.schedule.items()
             },
             "stats": {
-                "ik_problems": s.problems, "key_problems": s.key_problems,
-                "iterations": s.iterations, "not_converged": s.not_converged,
-                "solve_time_s": s.solve_time, "total_time_s": s.total_time,
-            },  # fmt: skip
+                "ik_problems": s.problems,
+                "key_problems": s.key_problems,
+                "iterations": s.iterations,
+                "not_converged": s.not_converged,
+                "solve_time_s": s.solve_time,
+                "total_time_s": s.total_time,
+            },
         }
 
 
@@ -236,14 +276,24 @@ class Realizer:
     """Key postures (pass 1), frames (pass 2, with :class:`~azee_mj.motion.Motion`) and
     residual traces of ``score``; use :func:`realize`."""
 
-    def __init__(self, score: sc.Score, solver: ik.Solver, fps: float, mode: Mode,
-                 signer_map: SignerMap = DEFAULT_MAP):  # fmt: skip
+    def __init__(
+        self,
+        score: sc.Score,
+        solver: ik.Solver,
+        fps: float,
+        mode: Mode,
+        signer_map: SignerMap = DEFAULT_MAP,
+    ):
         self.score, self.solver, self.fps, self.mode = score, solver, fps, mode
         self.sched = Schedule(score, solver, signer_map)
         self.motion = Motion(self.sched, mode, fps)
         self.m, self.smap, self.comp = self.sched.m, self.sched.smap, self.sched.comp
         self.track_joints, self.track_dofs = self.sched.track_joints, self.sched.track_dofs
-        self.home, self.blocks, self.by_path = self.sched.home, self.sched.blocks, self.sched.by_path
+        self.home, self.blocks, self.by_path = (
+            self.sched.home,
+            self.sched.blocks,
+            self.sched.by_path,
+        )
         self.n_key = 0
         #: constraint label -> why its key posture misses it (see :mod:`azee_mj.diagnose`)
         self.reasons: dict[str, str] = {}
@@ -255,13 +305,27 @@ class Realizer:
         self._palms = {a: self._palm_site(a) for a in self.arms}
         self._azee_site = {model: azee for azee, model in self.smap.sites.items()}
         ssp = self.smap.loci.get("ssp")
-        self._meet = ssp if ssp is not None and mujoco.mj_name2id(
-            self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0 else None
+        self._meet = (
+            ssp
+            if ssp is not None and mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0
+            else None
+        )
         self._chest = chest = self.smap.bones.get("back_2")
         #: The chest upright, a preference once the trunk is recruited (least recruitment).
-        self._upright = () if chest is None else (
-            cn.Orient(chest.body, chest.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)),
-                      np.radians(UPRIGHT_TOL_DEG), "upright"),)  # fmt: skip
+        self._upright = (
+            ()
+            if chest is None
+            else (
+                cn.Orient(
+                    chest.body,
+                    chest.dir,
+                    cn.Rel.ALONG,
+                    Const((0.0, 0.0, 1.0)),
+                    np.radians(UPRIGHT_TOL_DEG),
+                    "upright",
+                ),
+            )
+        )
 
     def _take(self, state: np.ndarray, tracks, q: np.ndarray) -> None:
         """Copy the joints of ``tracks`` from posture ``q`` into ``state`` (in place)."""
@@ -271,8 +335,10 @@ class Realizer:
     def _arm_carrying(self, site: str, part: str = "hand") -> Arm | None:
         """The arm whose ``part`` (``hand`` or ``upper``) carries model ``site``, or None."""
         body = int(self.m.site_bodyid[self.solver.site_id(site)])
-        return next((a for a in self.arms
-                     if descends(self.m, body, self.solver.body_id(getattr(a, part)))), None)
+        return next(
+            (a for a in self.arms if descends(self.m, body, self.solver.body_id(getattr(a, part)))),
+            None,
+        )
 
     def _hand_of(self, site: str) -> Arm | None:
         """The arm whose hand carries model ``site`` (for the analytic seeds), or None."""
@@ -307,20 +373,26 @@ class Realizer:
         keys: dict[str, list[Key]] = {t: [] for t in self.track_joints}
         state = self.home.copy()  # the posture each track holds now
         ev = self.sched.events()
-        cstr = [(b, self.sched.block_constraints(b)) for b in self.blocks if b.kind is sc.BlockKind.CSTR]
+        cstr = [
+            (b, self.sched.block_constraints(b)) for b in self.blocks if b.kind is sc.BlockKind.CSTR
+        ]
         holds = [b for b in self.blocks if b.kind is sc.BlockKind.HOLD]
-        trills = [(b, dc.tracks) for b, cons in cstr for dc in cons
-                  if isinstance(dc.source, sc.Trill)]  # fmt: skip
+        trills = [
+            (b, dc.tracks) for b, cons in cstr for dc in cons if isinstance(dc.source, sc.Trill)
+        ]
 
         def trill_tracks(t: float) -> list[set[str]]:
             return [tr for b, tr in trills if b.start <= t < b.end]
 
-        for t0, t1 in zip(ev[:-1], ev[1:]):
+        for t0, t1 in itertools.pairwise(ev):
             items: list[Active] = []
             for b, cons in cstr:
                 if b.start <= t0 < b.end:
-                    items += [Active(dc, b.start == t0) for dc in cons
-                              if not isinstance(dc.source, sc.Trill)]  # fmt: skip
+                    items += [
+                        Active(dc, b.start == t0)
+                        for dc in cons
+                        if not isinstance(dc.source, sc.Trill)
+                    ]
             held: set[str] = set()
             for h in holds:
                 if h.start <= t0 < h.end:
@@ -372,19 +444,31 @@ class Realizer:
         moves the earlier one off its target). Otherwise (and in a cycle) hands and the
         face first (a placed fingertip depends on its hand's shape), then groups driven
         by morphs only, then by name (deterministic)."""
-        def key(g):
-            return (not all(t.startswith(("hand", "face", "eyes")) for t in g),
-                    any(it.driven.con is not None for it in items if it.driven.tracks & g),
-                    sorted(g))
 
-        needs = [set().union(*(self.sched.moved_by(it.driven.con) for it in items
-                               if it.driven.tracks & g and it.driven.con is not None)) - g
-                 for g in groups]  # fmt: skip
+        def key(g):
+            return (
+                not all(t.startswith(("hand", "face", "eyes")) for t in g),
+                any(it.driven.con is not None for it in items if it.driven.tracks & g),
+                sorted(g),
+            )
+
+        needs = [
+            set().union(
+                *(
+                    self.sched.moved_by(it.driven.con)
+                    for it in items
+                    if it.driven.tracks & g and it.driven.con is not None
+                )
+            )
+            - g
+            for g in groups
+        ]
         rest = sorted(range(len(groups)), key=lambda i: key(groups[i]))
         out = []
         while rest:
-            i = next((i for i in rest if not any(needs[i] & groups[j] for j in rest if j != i)),
-                     rest[0])  # fmt: skip
+            i = next(
+                (i for i in rest if not any(needs[i] & groups[j] for j in rest if j != i)), rest[0]
+            )
             rest.remove(i)
             out.append(groups[i])
         return out
@@ -404,8 +488,9 @@ class Realizer:
         first_failed = next(i for i, g in enumerate(groups) if g in failed)
         for g, (r, _, _) in zip(groups[:first_failed], solved):
             self._take(state, g, r.qpos)  # solved before it: what the helped group builds on
-        first = self._lean_less(self._solve_group(helped, items, state, keys, t0, upright=True),
-                                helped, items, keys, t0)  # fmt: skip
+        first = self._lean_less(
+            self._solve_group(helped, items, state, keys, t0, upright=True), helped, items, keys, t0
+        )
         out = [first]
         self._take(state, helped, first[0].qpos)
         for g in met:
@@ -416,6 +501,7 @@ class Realizer:
             group = set().union(*groups) | {"spine"}
             together = self._solve_group(group, items, before, keys, t0, upright=True)
             tries.append(([group], [together]))
+
         def violation(cand) -> float:
             return sum(_violation(r) for r, _, _ in cand[1])
 
@@ -446,16 +532,18 @@ class Realizer:
             f = 0.5 * (lo + hi)
             q = best[0].qpos.copy()
             q[d] = self.home[d] + f * lean
-            res, cons, _ = self._solve_group(group, items, q, keys, t0, reuse=False,
-                                             held=("spine",), restarts=0)  # fmt: skip
+            res, cons, _ = self._solve_group(
+                group, items, q, keys, t0, reuse=False, held=("spine",), restarts=0
+            )
             if res.converged:
                 hi, best = f, (res, cons, solved[2])
             else:
                 lo = f
         return best
 
-    def _relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0: float,
-               t1: float) -> None:  # fmt: skip
+    def _relax(
+        self, keys, state: np.ndarray, busy: set[str], active: set, t0: float, t1: float
+    ) -> None:
         """The trunk and the head return to neutral over ``[t0, t1)`` when no block needs
         them: none drives them, and none that they were recruited for (their last key's
         constraints) is still ``active``."""
@@ -468,9 +556,18 @@ class Realizer:
             state[d] = self.home[d]
             keys[t].append(Key(t0, t1, self.home.copy(), (), self.track_joints[t], relax=True))
 
-    def _solve_group(self, group: set[str], items, state: np.ndarray, keys, t0: float,
-                     upright: bool = False, reuse: bool = True, held: tuple[str, ...] = (),
-                     restarts: int | None = None):  # fmt: skip
+    def _solve_group(
+        self,
+        group: set[str],
+        items,
+        state: np.ndarray,
+        keys,
+        t0: float,
+        upright: bool = False,
+        reuse: bool = True,
+        held: tuple[str, ...] = (),
+        restarts: int | None = None,
+    ):
         """Solve the constraints of ``items`` that drive tracks of ``group`` (rule 2:
         placements first when a block starts with both). When the constraints are some of
         those that held the group until now (blocks only ended), nothing needs to move and
@@ -492,43 +589,66 @@ class Realizer:
         prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < 1e-9]
         # (unless a track outside the group moved what they name: the head under a hand)
         carriers = set().union(*(self.sched.moved_by(c) for c in cons)) - group
-        if (reuse and len(prev) == len(group) and set(cons) <= set().union(*(k.cons for k in prev))
-                and all(np.allclose(state[self.track_dofs[t]], prev[0].q[self.track_dofs[t]],
-                                    atol=SAME_POSTURE) for t in carriers)):  # fmt: skip
+        if (
+            reuse
+            and len(prev) == len(group)
+            and set(cons) <= set().union(*(k.cons for k in prev))
+            and all(
+                np.allclose(
+                    state[self.track_dofs[t]], prev[0].q[self.track_dofs[t]], atol=SAME_POSTURE
+                )
+                for t in carriers
+            )
+        ):
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
             return kept, cons, free
         q0 = state.copy()
         places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
         # Also start each arm in its natural two-bone posture for its hand's target.
         facing = self._facing(cons)
-        seeds = reach.arm_seeds(self.solver, self.arms, cons + facing, free, q0, self._hand_of,
-                                self._meet, self._carried_by)
+        seeds = reach.arm_seeds(
+            self.solver,
+            self.arms,
+            cons + facing,
+            free,
+            q0,
+            self._hand_of,
+            self._meet,
+            self._carried_by,
+        )
         if not held and len(places) < len(cons) and any(it.starts_now for it in mine) and places:
             q0 = self.motion.solve(places, free, q0, t0, seeds, natural=False).qpos
             self.n_key += 1
-        where = (self._meeting_place(cons) + self._elbows_low(cons, free, q0)
-                 + (self._upright if upright else ()))
-        res = self.motion.solve(cons + facing, free, q0, t0, seeds, preferences=where,
-                                restarts=restarts)  # fmt: skip
+        where = (
+            self._meeting_place(cons)
+            + self._elbows_low(cons, free, q0)
+            + (self._upright if upright else ())
+        )
+        res = self.motion.solve(
+            cons + facing, free, q0, t0, seeds, preferences=where, restarts=restarts
+        )
         self.n_key += 1
         if facing and res.converged and self._joined_behind(cons, res.qpos):
             # Hands join in the signing space before they meet head-on: face to face with
             # a wider tolerance there (a fingertip on the back of the other hand, leaning).
             wide = [dataclasses.replace(f, tol=FACING_WIDEN * f.tol) for f in facing]
-            alt = self.motion.solve(cons + wide, free, q0, t0, seeds, preferences=where,
-                                    restarts=restarts)  # fmt: skip
+            alt = self.motion.solve(
+                cons + wide, free, q0, t0, seeds, preferences=where, restarts=restarts
+            )
             self.n_key += 1
             if alt.converged and not self._joined_behind(cons, alt.qpos):
                 return alt, cons + wide, free
         if facing and not res.converged:
             # Face to face is a preference below the score's constraints: without it?
-            plain = self.motion.solve(cons, free, q0, t0, seeds, preferences=where,
-                                      restarts=restarts)  # fmt: skip
+            plain = self.motion.solve(
+                cons, free, q0, t0, seeds, preferences=where, restarts=restarts
+            )
             self.n_key += 1
             if plain.converged or _violation(plain) < _violation(res):
                 if not plain.converged:  # kept to say why face to face failed, if asked
-                    self._unfaced.update({f.label: (res, cons + facing, free, q0, t0)
-                                          for f in facing})  # fmt: skip
+                    self._unfaced.update(
+                        {f.label: (res, cons + facing, free, q0, t0) for f in facing}
+                    )
                 return plain, cons, free
         return res, cons + facing, free
 
@@ -555,8 +675,10 @@ class Realizer:
         mujoco.mj_kinematics(self.m, d)
         body = self.solver.body_id(chest.body)
         forward = d.xmat[body].reshape(3, 3) @ np.asarray(chest.nrm, float)
-        return any((d.site_xpos[self.solver.site_id(c.site)] - d.xpos[body]) @ forward < 0.0
-                   for c in joined)  # fmt: skip
+        return any(
+            (d.site_xpos[self.solver.site_id(c.site)] - d.xpos[body]) @ forward < 0.0
+            for c in joined
+        )
 
     def _joins_hands(self, c) -> bool:
         """Whether constraint ``c`` places a site of one hand on a site of the other."""
@@ -617,8 +739,14 @@ class Realizer:
     def _palm_site(self, arm: Arm) -> str | None:
         """The model site of the palm's centre (AZee ``PA``) on ``arm``'s hand, or None."""
         hand = self.solver.body_id(arm.hand)
-        return next((s for a, s in self.smap.sites.items() if a.startswith("PA_")
-                     and int(self.m.site_bodyid[self.solver.site_id(s)]) == hand), None)
+        return next(
+            (
+                s
+                for a, s in self.smap.sites.items()
+                if a.startswith("PA_") and int(self.m.site_bodyid[self.solver.site_id(s)]) == hand
+            ),
+            None,
+        )
 
     def _across_at(self, arm: Arm):
         """Where the palm of ``arm`` rests when the other hand touches that arm: ``ACROSS``
@@ -638,14 +766,23 @@ class Realizer:
             a, b = self._azee_site.get(c.site), self._azee_site.get(c.target.site)
             if a not in self.smap.normals or b not in self.smap.normals:
                 continue
-            ba, bb = (self.m.body(int(self.m.site_bodyid[self.solver.site_id(s)])).name
-                      for s in (c.site, c.target.site))  # fmt: skip
+            ba, bb = (
+                self.m.body(int(self.m.site_bodyid[self.solver.site_id(s)])).name
+                for s in (c.site, c.target.site)
+            )
             if ba in oriented or bb in oriented:
                 continue
             tol = _facing_tol(a, b)
-            out.append(cn.Orient(ba, self.smap.normals[a], cn.Rel.OPP,
-                                 BodyAxis(bb, self.smap.normals[b]), tol,
-                                 f"{c.label}:facing"))  # fmt: skip
+            out.append(
+                cn.Orient(
+                    ba,
+                    self.smap.normals[a],
+                    cn.Rel.OPP,
+                    BodyAxis(bb, self.smap.normals[b]),
+                    tol,
+                    f"{c.label}:facing",
+                )
+            )
         return out
 
     def _joint_targets(self, changes: dict[str, float], tol: float = 0.02):
@@ -659,7 +796,7 @@ class Realizer:
 
     def _track_posture_at(self, tkeys: list[Key], t: float) -> np.ndarray:
         before = [k for k in tkeys if k.start < t - 1e-9]
-        return (before[-1].q if before else self.home)
+        return before[-1].q if before else self.home
 
     # -- pass 2: frames ---------------------------------------------------------------
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
@@ -670,7 +807,9 @@ class Realizer:
         names = list(self.track_joints)
         for ti, t in enumerate(names):
             d = self.track_dofs[t]
-            q[:, d], moving[:, ti] = self.motion.track_curve(keys[t], times, d, self._carried(t, keys))
+            q[:, d], moving[:, ti] = self.motion.track_curve(
+                keys[t], times, d, self._carried(t, keys)
+            )
         if self.mode is Mode.FLATTENED:
             return self.motion.flat_transpaths(q, times)
         return self.motion.constrained_blends(q, times, moving, names, keys)
@@ -678,8 +817,13 @@ class Realizer:
     def _carried(self, track: str, keys: dict[str, list[Key]]) -> list[float]:
         """End times [s] of other tracks' keys with a constraint that names a body this
         track moves (a hand held in front of the chin is carried by the head track)."""
-        return sorted(k.end for t, tk in keys.items() if t != track for k in tk
-                      if any(track in self.sched.moved_by(c) for c in k.cons))  # fmt: skip
+        return sorted(
+            k.end
+            for t, tk in keys.items()
+            if t != track
+            for k in tk
+            if any(track in self.sched.moved_by(c) for c in k.cons)
+        )
 
     # -- residuals ---------------------------------------------------------------------
     def traces(self, q: np.ndarray, times: np.ndarray) -> tuple[ConstraintTrace, ...]:
@@ -699,9 +843,21 @@ class Realizer:
                     mujoco.mj_kinematics(self.m, d)
                     vals[k] = ic.residual(self.solver.kinematics())
                 unit = "m" if isinstance(ic, cn.Place) else "rad"
-                out.append(ConstraintTrace(b.path, c.index, type(c).__name__.lower(), ic.tol,
-                                           unit, b.start, b.end, span.start, vals,
-                                           len(times), self.reasons.get(ic.label, "")))  # fmt: skip
+                out.append(
+                    ConstraintTrace(
+                        b.path,
+                        c.index,
+                        type(c).__name__.lower(),
+                        ic.tol,
+                        unit,
+                        b.start,
+                        b.end,
+                        span.start,
+                        vals,
+                        len(times),
+                        self.reasons.get(ic.label, ""),
+                    )
+                )
         return tuple(out)
 
 
@@ -787,16 +943,20 @@ def realize(
     tick(1.0)
     res = r.results
     stats = SolveStats(
-        problems=len(res), key_problems=r.n_key, iterations=sum(x.iterations for x in res),
+        problems=len(res),
+        key_problems=r.n_key,
+        iterations=sum(x.iterations for x in res),
         not_converged=sum(not x.converged for x in res),
-        solve_time=sum(x.time for x in res), total_time=_time.perf_counter() - t_start,
+        solve_time=sum(x.time for x in res),
+        total_time=_time.perf_counter() - t_start,
         per_problem_iterations=np.array([x.iterations for x in res]),
-    )  # fmt: skip
+    )
     return Rollout(fps, mode, times, q, site_names, site_pos, own.schedule(), traces, stats)
 
 
-def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
-                 solver: ik.Solver | None = None) -> tuple[ConstraintTrace, ...]:
+def score_traces(
+    score: sc.Score | str, qpos: np.ndarray, fps: float, solver: ik.Solver | None = None
+) -> tuple[ConstraintTrace, ...]:
     """Residual traces of ``score``'s constraints on given frames ``qpos`` (T, nq)."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
@@ -804,18 +964,24 @@ def score_traces(score: sc.Score | str, qpos: np.ndarray, fps: float,
     return r.traces(np.asarray(qpos, float), np.arange(len(qpos)) / fps)
 
 
-def residual_summary(score: sc.Score | str, rollout: Rollout,
-                     solver: ik.Solver | None = None) -> tuple[str, bool]:
+def residual_summary(
+    score: sc.Score | str, rollout: Rollout, solver: ik.Solver | None = None
+) -> tuple[str, bool]:
     """A readable residual summary of a rollout's postures against ``score``, and whether
     every constraint is within its tolerance."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     # A trill moves its block's posture on purpose: its block's residuals are not checked.
-    trilled = {b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)}
-    traces = [t for t in score_traces(score, rollout.qpos, rollout.fps, solver)
-              if t.block not in trilled]  # fmt: skip
+    trilled = {
+        b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)
+    }
+    traces = [
+        t for t in score_traces(score, rollout.qpos, rollout.fps, solver) if t.block not in trilled
+    ]
     bad = [t for t in traces if not t.ok]
-    lines = [f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"
-             + (f" ({len(trilled)} block(s) with a trill not checked)" if trilled else "")]
+    lines = [
+        f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"
+        + (f" ({len(trilled)} block(s) with a trill not checked)" if trilled else "")
+    ]
     lines += [f"  {t.describe()}" for t in bad[:8]]
     return "\n".join(lines), not bad

@@ -57,8 +57,10 @@ def frame_count(duration: float, fps: float) -> int:
     before the end; raises :class:`AzeeError` beyond :data:`MAX_FRAMES`."""
     n = math.floor(duration * fps + _FRAME_SLACK) + 1
     if n > MAX_FRAMES:
-        raise AzeeError(f"{duration:g} s at {fps:g} fps is {n} frames; the limit is "
-                        f"{MAX_FRAMES} frames (1 hour at 50 fps): lower --fps or split the score")
+        raise AzeeError(
+            f"{duration:g} s at {fps:g} fps is {n} frames; the limit is "
+            f"{MAX_FRAMES} frames (1 hour at 50 fps): lower --fps or split the score"
+        )
     return n
 
 
@@ -71,6 +73,5 @@ def check_fps(fps, option: str = "--fps") -> float:
         x = math.nan
     if not (math.isfinite(x) and MIN_FPS <= x <= MAX_FPS):
         shown = f"{fps:g}" if isinstance(fps, float) else repr(fps)
-        raise AzeeError(f"{option} must be a number from {MIN_FPS:g} to {MAX_FPS:g}, "
-                        f"got {shown}")  # fmt: skip
+        raise AzeeError(f"{option} must be a number from {MIN_FPS:g} to {MAX_FPS:g}, got {shown}")
     return x

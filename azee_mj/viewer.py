@@ -70,10 +70,15 @@ def preview(
     (or after ``max_frames`` viewer updates). Returns the number of updates."""
     import mujoco.viewer
 
-    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") and not \
-            os.environ.get("WAYLAND_DISPLAY"):  # fmt: skip
-        raise AzeeError("preview needs a display (DISPLAY is unset); run it under "
-                        "'xvfb-run', or use 'azee-mj render' for a video")  # fmt: skip
+    if (
+        sys.platform.startswith("linux")
+        and not os.environ.get("DISPLAY")
+        and not os.environ.get("WAYLAND_DISPLAY")
+    ):
+        raise AzeeError(
+            "preview needs a display (DISPLAY is unset); run it under "
+            "'xvfb-run', or use 'azee-mj render' for a video"
+        )
     model = scene_model()
     data = mujoco.MjData(model)
     tg = Targets(clip.score) if targets and clip.score is not None else None
@@ -121,12 +126,22 @@ def preview(
                 handle.opt.flags[mujoco.mjtVisFlag.mjVIS_CONTACTPOINT] = 0
             left, right = frame_text(clip, frame, player.speed, player.paused)
             name = CAMERAS[cam_i - 1] if cams[cam_i] >= 0 else "free"
-            handle.set_texts([
-                (mujoco.mjtFontScale.mjFONTSCALE_150, mujoco.mjtGridPos.mjGRID_TOPLEFT,
-                 left + "\ncamera", right + "\n" + name),
-                (mujoco.mjtFontScale.mjFONTSCALE_150, mujoco.mjtGridPos.mjGRID_BOTTOMLEFT,
-                 "keys", "space pause, <- -> step, up/down speed, C camera"),
-            ])  # fmt: skip
+            handle.set_texts(
+                [
+                    (
+                        mujoco.mjtFontScale.mjFONTSCALE_150,
+                        mujoco.mjtGridPos.mjGRID_TOPLEFT,
+                        left + "\ncamera",
+                        right + "\n" + name,
+                    ),
+                    (
+                        mujoco.mjtFontScale.mjFONTSCALE_150,
+                        mujoco.mjtGridPos.mjGRID_BOTTOMLEFT,
+                        "keys",
+                        "space pause, <- -> step, up/down speed, C camera",
+                    ),
+                ]
+            )
             handle.sync()
             n += 1
             _time.sleep(max(0.0, 1.0 / 60 - (_time.perf_counter() - now)))

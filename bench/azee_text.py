@@ -64,19 +64,28 @@ def main() -> int:
     bad = [t.describe() for t in r.traces if not t.ok]
     blocks = sum(1 for b in loaded.blocks() if b.kind.value != "sync")
     out = {
-        "expression": EXPRESSION, "rules": 10, "duration_s": loaded.duration,
-        "blocks": blocks, "compile_ms_median_warm": 1000 * statistics.median(warm),
+        "expression": EXPRESSION,
+        "rules": 10,
+        "duration_s": loaded.duration,
+        "blocks": blocks,
+        "compile_ms_median_warm": 1000 * statistics.median(warm),
         "compile_ms_median_fresh_lexicon": 1000 * statistics.median(cold),
-        "realize_s": realize_s, "realtime_factor": loaded.duration / realize_s,
-        "frames": len(r.time), "within_tolerance": f"{ok}/{len(r.traces)}", "not_within": bad,
-        "machine": platform.processor() or platform.machine(), "python": platform.python_version(),
-    }  # fmt: skip
+        "realize_s": realize_s,
+        "realtime_factor": loaded.duration / realize_s,
+        "frames": len(r.time),
+        "within_tolerance": f"{ok}/{len(r.traces)}",
+        "not_within": bad,
+        "machine": platform.processor() or platform.machine(),
+        "python": platform.python_version(),
+    }
     path = ROOT / "bench" / "results" / "azee_text.json"
     path.write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps(out, indent=1))
-    print(f"| 10 rules, {loaded.duration:.2f} s, {blocks} blocks | "
-          f"{out['compile_ms_median_warm']:.1f} / {out['compile_ms_median_fresh_lexicon']:.1f} | "
-          f"{realize_s:.2f} | {out['realtime_factor']:.1f} | {ok}/{len(r.traces)} |")
+    print(
+        f"| 10 rules, {loaded.duration:.2f} s, {blocks} blocks | "
+        f"{out['compile_ms_median_warm']:.1f} / {out['compile_ms_median_fresh_lexicon']:.1f} | "
+        f"{realize_s:.2f} | {out['realtime_factor']:.1f} | {ok}/{len(r.traces)} |"
+    )
     return 0
 
 

@@ -83,8 +83,13 @@ def _world_perp_row(model, data, bid, local, v, jr):
 class MinkSolver:
     """Differential IK with mink on our solver's model (its own ``MjData``)."""
 
-    def __init__(self, solver: ik.Solver, solver_name: str = "daqp",
-                 max_iter: int = MINK_MAX_ITER, damping: float = MINK_DAMPING):
+    def __init__(
+        self,
+        solver: ik.Solver,
+        solver_name: str = "daqp",
+        max_iter: int = MINK_MAX_ITER,
+        damping: float = MINK_DAMPING,
+    ):
         mink = _import_mink()
         self.mink = mink
         self.s = solver
@@ -97,9 +102,11 @@ class MinkSolver:
         self.collision_geoms = [int(g) for g in np.flatnonzero(m.geom_contype | m.geom_conaffinity)]
         self.config_limit = mink.ConfigurationLimit(m)
         self.step_limit = mink.VelocityLimit(
-            m, {m.joint(j).name: MINK_MAX_STEP / MINK_DT for j in range(m.njnt)})
+            m, {m.joint(j).name: MINK_MAX_STEP / MINK_DT for j in range(m.njnt)}
+        )
         self.all_pairs = mink.CollisionAvoidanceLimit(
-            m, [(self.collision_geoms, self.collision_geoms)],
+            m,
+            [(self.collision_geoms, self.collision_geoms)],
             minimum_distance_from_collisions=MINK_MIN_DIST,
             collision_detection_distance=MINK_DETECTION,
         ).geom_id_pairs
@@ -118,13 +125,15 @@ class MinkSolver:
                 task.jr = np.empty((3, m.nv))
 
             def compute_error(task, configuration):
-                e, _ = _world_perp_row(configuration.model, configuration.data, task.bid,
-                                       task.local, task.v, task.jr)  # fmt: skip
+                e, _ = _world_perp_row(
+                    configuration.model, configuration.data, task.bid, task.local, task.v, task.jr
+                )
                 return np.array([e])
 
             def compute_jacobian(task, configuration):
-                _, j = _world_perp_row(configuration.model, configuration.data, task.bid,
-                                       task.local, task.v, task.jr)  # fmt: skip
+                _, j = _world_perp_row(
+                    configuration.model, configuration.data, task.bid, task.local, task.v, task.jr
+                )
                 return j[None, :]
 
         self.PerpTask = PerpTask
@@ -135,13 +144,15 @@ class MinkSolver:
         if lim is None:
             mink, m = self.mink, self.model
             lim = mink.CollisionAvoidanceLimit(
-                m, [([self.collision_geoms[0]], [self.collision_geoms[1]])],
+                m,
+                [([self.collision_geoms[0]], [self.collision_geoms[1]])],
                 minimum_distance_from_collisions=MINK_MIN_DIST,
                 collision_detection_distance=MINK_DETECTION,
             )
             b = m.geom_bodyid
-            lim.geom_id_pairs = [(g1, g2) for g1, g2 in self.all_pairs
-                                 if (int(b[g1]), int(b[g2])) not in joined]  # fmt: skip
+            lim.geom_id_pairs = [
+                (g1, g2) for g1, g2 in self.all_pairs if (int(b[g1]), int(b[g2])) not in joined
+            ]
             lim.max_num_contacts = len(lim.geom_id_pairs)
             lim._init_broadphase(m)
             self._limits[joined] = lim
@@ -156,8 +167,14 @@ class MinkSolver:
                 t.set_target(mink.SE3.from_translation(np.asarray(c.target.value, float)))
                 out.append(t)
             elif isinstance(c, cn.Place) and isinstance(c.target, kin.SitePos):
-                t = mink.RelativeFrameTask(c.site, "site", c.target.site, "site",
-                                           position_cost=1.0 / c.tol, orientation_cost=0.0)  # fmt: skip
+                t = mink.RelativeFrameTask(
+                    c.site,
+                    "site",
+                    c.target.site,
+                    "site",
+                    position_cost=1.0 / c.tol,
+                    orientation_cost=0.0,
+                )
                 t.set_target(mink.SE3.identity())
                 out.append(t)
             elif isinstance(c, cn.Orient) and isinstance(c.vector, kin.Const):
@@ -188,8 +205,15 @@ class MinkSolver:
         it = 0
         for it in range(1, self.max_iter + 1):
             try:
-                v = mink.solve_ik(cfg, tasks, MINK_DT, self.solver_name, damping=self.damping,
-                                  limits=limits, constraints=constraints)  # fmt: skip
+                v = mink.solve_ik(
+                    cfg,
+                    tasks,
+                    MINK_DT,
+                    self.solver_name,
+                    damping=self.damping,
+                    limits=limits,
+                    constraints=constraints,
+                )
             except mink.NoSolutionFound:  # infeasible QP (e.g. limits violated): give up
                 self.qp_failures += 1
                 break
@@ -204,8 +228,11 @@ def _within(plan, data) -> bool:
     for c in plan.cons:
         if isinstance(c, cn.Place):
             p = data.site_xpos[plan.s.site_id(c.site)]
-            t = (np.asarray(c.target.value) if isinstance(c.target, kin.Const)
-                 else data.site_xpos[plan.s.site_id(c.target.site)])  # fmt: skip
+            t = (
+                np.asarray(c.target.value)
+                if isinstance(c.target, kin.Const)
+                else data.site_xpos[plan.s.site_id(c.target.site)]
+            )
             if np.linalg.norm(p - t) > c.tol:
                 return False
         elif isinstance(c, cn.Orient):
@@ -229,7 +256,7 @@ class SimStepper:
         m.opt.gravity[:] = 0.0
         m.geom_margin[:] = 0.0  # MuJoCo's default (the solver's own copy detects at 4 mm)
         self.model, self.data = m, mujoco.MjData(m)
-        self.n_steps = int(round(sim_time / m.opt.timestep))
+        self.n_steps = round(sim_time / m.opt.timestep)
         self.still = still
 
     def solve(self, problem: ik.IKProblem, q0: np.ndarray):

@@ -59,11 +59,21 @@ def main():
             rows.append({"format": suffix, "export_s": best, "bytes": out.stat().st_size})
             print(f"{suffix:6s} {best:7.3f} s {out.stat().st_size / 1e6:7.2f} MB")
     out = {
-        "machine": {"cpu": _cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
-                    "mujoco": mujoco.__version__, "numpy": np.__version__},
-        "signs": names, "duration_s": score.duration, "frames": len(r.time), "fps": r.fps,
-        "realize_s": realize_s, "repeats": args.repeats, "rows": rows,
-    }  # fmt: skip
+        "machine": {
+            "cpu": _cpu(),
+            "cores": os.cpu_count(),
+            "python": platform.python_version(),
+            "mujoco": mujoco.__version__,
+            "numpy": np.__version__,
+        },
+        "signs": names,
+        "duration_s": score.duration,
+        "frames": len(r.time),
+        "fps": r.fps,
+        "realize_s": realize_s,
+        "repeats": args.repeats,
+        "rows": rows,
+    }
     (ROOT / "bench" / "results").mkdir(exist_ok=True)
     (ROOT / "bench" / "results" / "export.json").write_text(json.dumps(out, indent=1))
 

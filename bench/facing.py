@@ -60,12 +60,14 @@ SETTINGS = (
     ("internal rotation 90", {"arm_R_rot": (-90, 90)}),
     ("internal rotation 100", {"arm_R_rot": (-90, 100)}),
     ("internal rotation 110", {"arm_R_rot": (-90, 110)}),
-    ("rotation 90, pronation 90, wrist flexion 85",
-     {"arm_R_rot": (-90, 90), "f_arm_R_pron": (-80, 90), "palm_R_flex": (-70, 85)}),
+    (
+        "rotation 90, pronation 90, wrist flexion 85",
+        {"arm_R_rot": (-90, 90), "f_arm_R_pron": (-80, 90), "palm_R_flex": (-70, 85)},
+    ),
     ("clavicle elevation <= 10", {"clav_R_elev": (-10, 10)}),
     ("clavicle <= 10, rotation 110", {"clav_R_elev": (-10, 10), "arm_R_rot": (-90, 110)}),
     ("clavicle <= 10, rotation 120", {"clav_R_elev": (-10, 10), "arm_R_rot": (-90, 120)}),
-)  # fmt: skip
+)
 
 
 class Reach:
@@ -168,8 +170,11 @@ class Reach:
         return best
 
     def at_limits(self, x) -> str:
-        lim = [f"{j} {x_ / DEG:.0f}" for j, x_, lo, hi in zip(self.joints, x, self.lo, self.hi)
-               if min(x_ - lo, hi - x_) < 0.5 * DEG]  # fmt: skip
+        lim = [
+            f"{j} {x_ / DEG:.0f}"
+            for j, x_, lo, hi in zip(self.joints, x, self.lo, self.hi)
+            if min(x_ - lo, hi - x_) < 0.5 * DEG
+        ]
         return ", ".join(lim) or "none"
 
 
@@ -242,10 +247,16 @@ def main(argv=None) -> int:
     print("| --- | --- | --- | --- | --- | --- |")
     for label, ranges in settings:
         o = measure(contact, ranges, args.starts, args.model)
-        f = (f"{o['facing_deg']:.1f} | {o['facing_limits']} | {o['elbow_below_shoulder_mm']:.0f}"
-             if "facing_deg" in o else "none found | | ")  # fmt: skip
-        t = (f"{o['touching_mm']:.2f} | {o['touching_deg']:.1f}"
-             if "touching_mm" in o else "none found | ")  # fmt: skip
+        f = (
+            f"{o['facing_deg']:.1f} | {o['facing_limits']} | {o['elbow_below_shoulder_mm']:.0f}"
+            if "facing_deg" in o
+            else "none found | | "
+        )
+        t = (
+            f"{o['touching_mm']:.2f} | {o['touching_deg']:.1f}"
+            if "touching_mm" in o
+            else "none found | "
+        )
         print(f"| {label} | {f} | {t} |", flush=True)
     return 0
 

@@ -34,10 +34,42 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted((ROOT / "examples").glob("*.json"))
 
 HOSTILE = [
-    0, -1, 1, 2.5, 1e-12, -1e-12, 1e6, 1e7, 1e308, -1e308, 3600, 4000, 0.1, None, True, False,
-    "", "x", "@NOPE(s)", "@I_TIP(s)", "^ssp", "!head", "fwd", "nan", "lat(q)",
-    "\x1b[31mred\x1b[0m", "a\nb", "\u202eevil", "A" * 100_000, [], {}, [0, 0, 0],
-    [1e308, 0, 0], [0, 0], {"translate": "@FH", "by": "up"}, {"unit": [0, 0, 0]},
+    0,
+    -1,
+    1,
+    2.5,
+    1e-12,
+    -1e-12,
+    1e6,
+    1e7,
+    1e308,
+    -1e308,
+    3600,
+    4000,
+    0.1,
+    None,
+    True,
+    False,
+    "",
+    "x",
+    "@NOPE(s)",
+    "@I_TIP(s)",
+    "^ssp",
+    "!head",
+    "fwd",
+    "nan",
+    "lat(q)",
+    "\x1b[31mred\x1b[0m",
+    "a\nb",
+    "\u202eevil",
+    "A" * 100_000,
+    [],
+    {},
+    [0, 0, 0],
+    [1e308, 0, 0],
+    [0, 0],
+    {"translate": "@FH", "by": "up"},
+    {"unit": [0, 0, 0]},
 ]
 
 
@@ -84,16 +116,28 @@ def mutate(data: dict, rng: random.Random) -> dict | str:
     elif kind < 0.55:  # a key or item removed
         del parent[key]
     elif kind < 0.62:  # a number scaled or shifted by a multiple of 0.1 s
-        nums = [q for q in paths if isinstance(_get(d, q), (int, float))
-                and not isinstance(_get(d, q), bool)]  # fmt: skip
+        nums = [
+            q
+            for q in paths
+            if isinstance(_get(d, q), (int, float)) and not isinstance(_get(d, q), bool)
+        ]
         if nums:
             q = rng.choice(nums)
             par = _get(d, q[:-1])
-            par[q[-1]] = rng.choice([par[q[-1]] * rng.choice([-1, 0.5, 2, 1000]),
-                                     par[q[-1]] + 0.1 * rng.randint(-30, 30)])  # fmt: skip
+            par[q[-1]] = rng.choice(
+                [
+                    par[q[-1]] * rng.choice([-1, 0.5, 2, 1000]),
+                    par[q[-1]] + 0.1 * rng.randint(-30, 30),
+                ]
+            )
     elif kind < 0.68:  # a block duplicated (same name twice, or renamed)
-        blocks = [q for q in paths if isinstance(_get(d, q), dict) and "kind" in _get(d, q)
-                  and isinstance(_get(d, q[:-1]), list)]  # fmt: skip
+        blocks = [
+            q
+            for q in paths
+            if isinstance(_get(d, q), dict)
+            and "kind" in _get(d, q)
+            and isinstance(_get(d, q[:-1]), list)
+        ]
         if blocks:
             q = rng.choice(blocks)
             lst = _get(d, q[:-1])
@@ -123,8 +167,9 @@ def mutate(data: dict, rng: random.Random) -> dict | str:
             i = rng.randrange(len(text))
             return text[:i] + chr(rng.randrange(1, 256)) + text[i + 1 :]
         if r < 0.8:
-            return text.replace('"end": ', '"end": ' + "9" * rng.choice([20, 400, 5000]) + "+0*", 1
-                                ).replace("+0*", "", 1)  # fmt: skip
+            return text.replace(
+                '"end": ', '"end": ' + "9" * rng.choice([20, 400, 5000]) + "+0*", 1
+            ).replace("+0*", "", 1)
         if r < 0.9:  # an expression nested thousands deep
             n = rng.choice([600, 3000, 50_000])
             return text.replace('"up"', '{"unit": ' * n + '"up"' + "}" * n, 1)
@@ -199,14 +244,22 @@ def mutate_rollout(arrays: dict, rng: random.Random) -> dict | bytes:
         del a[k]
     elif r < 0.45:  # another value: wrong shape, dtype, or non-finite numbers
         v = a[k] if a[k].ndim else a[k].reshape(1)
-        a[k] = rng.choice([
-            np.array(np.nan), np.array("text"), np.zeros((0,)), np.zeros((2, 2, 2, 2)),
-            np.arange(3), np.array([1e308, -1e308]), np.array(["x#y", "#", "a#99999999999"]),
-            np.full(v.shape, np.nan) if v.dtype.kind == "f" else v[:0],
-            np.full(v.shape, np.inf) if v.dtype.kind == "f" else v[::-1],
-            v.astype(np.float32) if v.dtype.kind == "f" else v.astype("U1"),
-            v.reshape(-1), v[: max(0, len(v) - 1)],
-        ])  # fmt: skip
+        a[k] = rng.choice(
+            [
+                np.array(np.nan),
+                np.array("text"),
+                np.zeros((0,)),
+                np.zeros((2, 2, 2, 2)),
+                np.arange(3),
+                np.array([1e308, -1e308]),
+                np.array(["x#y", "#", "a#99999999999"]),
+                np.full(v.shape, np.nan) if v.dtype.kind == "f" else v[:0],
+                np.full(v.shape, np.inf) if v.dtype.kind == "f" else v[::-1],
+                v.astype(np.float32) if v.dtype.kind == "f" else v.astype("U1"),
+                v.reshape(-1),
+                v[: max(0, len(v) - 1)],
+            ]
+        )
     elif r < 0.6:  # one value spoiled inside a numeric array
         v = a[k]
         if v.dtype.kind == "f" and v.size:
@@ -292,14 +345,23 @@ def main():
                 failures.append({"mutant": label, "outcome": outcome, "detail": detail})
                 print(f"{label}: {outcome}: {detail}", flush=True)
     wall = time.perf_counter() - t0
-    summary = {"count": args.count, "seed": args.seed, "fps": args.fps, "outcomes": dict(counts),
-               "rollouts": args.rollouts, "check_outcomes": dict(checks),
-               "failures": failures, "wall_s": wall}  # fmt: skip
+    summary = {
+        "count": args.count,
+        "seed": args.seed,
+        "fps": args.fps,
+        "outcomes": dict(counts),
+        "rollouts": args.rollouts,
+        "check_outcomes": dict(checks),
+        "failures": failures,
+        "wall_s": wall,
+    }
     res = ROOT / "bench" / "results"
     res.mkdir(exist_ok=True)
     (res / "fuzz.json").write_text(json.dumps(summary, indent=1) + "\n")
-    print(f"{args.count} scores and {args.rollouts} rollouts in {wall:.0f} s: {dict(counts)}; "
-          f"check: {dict(checks)}")
+    print(
+        f"{args.count} scores and {args.rollouts} rollouts in {wall:.0f} s: {dict(counts)}; "
+        f"check: {dict(checks)}"
+    )
     return 1 if failures else 0
 
 

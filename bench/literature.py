@@ -44,8 +44,10 @@ FPS = 50.0
 
 #: Published figures: example -> (source, IK problems or None, seconds, accuracy).
 PUBLISHED = {
-    "arbre": [("Nunnari et al. 2018 (tree)", 11, 2.76, "1 cm / 5 deg"),
-              ("later Blender version (issue 6)", None, 0.63, "n/a")],
+    "arbre": [
+        ("Nunnari et al. 2018 (tree)", 11, 2.76, "1 cm / 5 deg"),
+        ("later Blender version (issue 6)", None, 0.63, "n/a"),
+    ],
     # The 2018 paper's two-sign sentence is "the cinema is/was good" (sec. 5.2: info-about
     # with cinema and good), i.e. our info-about example, not nicht-sondern.
     "info-about": [("Nunnari et al. 2018 (cinema + good sentence)", 152, 9.97, "1 cm / 5 deg")],
@@ -57,15 +59,20 @@ PUBLISHED = {
 def machine() -> dict:
     cpu = platform.processor() or ""
     try:
-        for line in open("/proc/cpuinfo"):
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
                 cpu = line.split(":", 1)[1].strip()
                 break
     except OSError:
         pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "platform": platform.platform()}  # fmt: skip
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "platform": platform.platform(),
+    }
 
 
 def undriven_motion(rollout, schedule, solver) -> float:
@@ -75,8 +82,11 @@ def undriven_motion(rollout, schedule, solver) -> float:
     for track, joints in DEFAULT_MAP.tracks.items():
         if schedule.get(track):
             continue
-        adr = [m.jnt_qposadr[solver.joint_id(j)] for j in joints
-               if m.jnt_type[solver.joint_id(j)] == mujoco.mjtJoint.mjJNT_HINGE]  # fmt: skip
+        adr = [
+            m.jnt_qposadr[solver.joint_id(j)]
+            for j in joints
+            if m.jnt_type[solver.joint_id(j)] == mujoco.mjtJoint.mjJNT_HINGE
+        ]
         if adr:
             total += float(np.abs(np.diff(rollout.qpos[:, adr], axis=0)).sum())
     return total
@@ -133,20 +143,35 @@ def main(argv=None) -> int:
         row["undriven_tracks"] = sorted(t for t, v in sched.items() if not v)
         row["multitrack"], row["flattened"] = multi, flat
         row["published"] = [
-            {"source": s, "ik_problems": n, "time_s": t, "accuracy": a,
-             "speedup_multitrack": t / multi["total_time_s"],
-             "speedup_flattened": t / flat["total_time_s"]}
+            {
+                "source": s,
+                "ik_problems": n,
+                "time_s": t,
+                "accuracy": a,
+                "speedup_multitrack": t / multi["total_time_s"],
+                "speedup_flattened": t / flat["total_time_s"],
+            }
             for s, n, t, a in PUBLISHED.get(name, [])
-        ]  # fmt: skip
+        ]
         results[name] = row
-        print(f"{name:14s} multitrack {multi['total_time_s']:6.2f} s {multi['key_problems']:3d}/"
-              f"{multi['problems']:4d} problems, {multi['constraints_ok']}/{multi['constraints']} ok"
-              f" | flattened {flat['total_time_s']:6.2f} s {flat['key_problems']:3d}/"
-              f"{flat['problems']:4d}, {flat['constraints_ok']}/{flat['constraints']} ok")
-    out = {"machine": machine(), "fps": FPS, "tolerances": "1 mm / 1 deg (defaults)",
-           "solver": "one shared azee_mj.ik.Solver for every run", "examples": results}
+        print(
+            f"{name:14s} multitrack {multi['total_time_s']:6.2f} s {multi['key_problems']:3d}/"
+            f"{multi['problems']:4d} problems, {multi['constraints_ok']}/{multi['constraints']} ok"
+            f" | flattened {flat['total_time_s']:6.2f} s {flat['key_problems']:3d}/"
+            f"{flat['problems']:4d}, {flat['constraints_ok']}/{flat['constraints']} ok"
+        )
+    out = {
+        "machine": machine(),
+        "fps": FPS,
+        "tolerances": "1 mm / 1 deg (defaults)",
+        "solver": "one shared azee_mj.ik.Solver for every run",
+        "examples": results,
+    }
     pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    pathlib.Path(args.out).write_text(json.dumps(out, indent=1, default=lambda o: o.item() if hasattr(o, "item") else str(o)) + "\n")
+    pathlib.Path(args.out).write_text(
+        json.dumps(out, indent=1, default=lambda o: o.item() if hasattr(o, "item") else str(o))
+        + "\n"
+    )
     print(f"wrote {args.out}")
     if args.markdown:
         print(markdown(out))
@@ -156,8 +181,10 @@ def main(argv=None) -> int:
 def markdown(out: dict) -> str:
     mc = out["machine"]
     lines = [
-        f"Machine: {mc['cpu']}, {mc['cores']} cores; Python {mc['python']}, MuJoCo {mc['mujoco']}. "
-        f"{out['fps']:g} fps, default tolerances (1 mm / 1 degree), one shared solver.",
+        (
+            f"Machine: {mc['cpu']}, {mc['cores']} cores; Python {mc['python']}, MuJoCo {mc['mujoco']}. "
+            f"{out['fps']:g} fps, default tolerances (1 mm / 1 degree), one shared solver."
+        ),
         "",
         "| example | mode | postures (key / all) | iterations | time [s] | real-time factor | worst place [mm] | worst angle [deg] | within tol | penetrations | undriven-track motion [rad] |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
@@ -169,10 +196,16 @@ def markdown(out: dict) -> str:
                 f"| {name} | {mode} | {r['key_problems']} / {r['problems']} | {r['iterations']} | "
                 f"{r['total_time_s']:.2f} | {r['realtime_factor']:.2f} | {r['worst_place_mm']:.2f} | "
                 f"{r['worst_angle_deg']:.2f} | {r['constraints_ok']}/{r['constraints']} | "
-                f"{r['penetrations']} | {r['undriven_motion_rad']:.3f} |")  # fmt: skip
-    lines += ["", "| example | published | their IK problems | their time [s] | their accuracy | "
-              "our time multitrack / flattened [s] | speed-up multitrack / flattened | our worst (multitrack) |",
-              "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+                f"{r['penetrations']} | {r['undriven_motion_rad']:.3f} |"
+            )
+    lines += [
+        "",
+        (
+            "| example | published | their IK problems | their time [s] | their accuracy | "
+            "our time multitrack / flattened [s] | speed-up multitrack / flattened | our worst (multitrack) |"
+        ),
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
     for name, row in out["examples"].items():
         for p in row["published"]:
             m, f = row["multitrack"], row["flattened"]
@@ -181,7 +214,8 @@ def markdown(out: dict) -> str:
                 f"| {name} | {p['source']} | {n} | {p['time_s']} | {p['accuracy']} | "
                 f"{m['total_time_s']:.2f} / {f['total_time_s']:.2f} | "
                 f"{p['speedup_multitrack']:.1f}x / {p['speedup_flattened']:.1f}x | "
-                f"{m['worst_place_mm']:.1f} mm / {m['worst_angle_deg']:.1f} deg |")  # fmt: skip
+                f"{m['worst_place_mm']:.1f} mm / {m['worst_angle_deg']:.1f} deg |"
+            )
     return "\n".join(lines)
 
 

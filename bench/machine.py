@@ -33,8 +33,14 @@ def cpu() -> str:
 def machine(**extra) -> dict:
     """CPU, cores, Python and library versions, platform and date, plus ``extra``."""
     return {
-        "cpu": cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
-        "mujoco": mujoco.__version__, "numpy": np.__version__, "mink": _version("mink"),
-        "daqp": _version("daqp"), "platform": platform.platform(),
-        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"), **extra,
-    }  # fmt: skip
+        "cpu": cpu(),
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "mink": _version("mink"),
+        "daqp": _version("daqp"),
+        "platform": platform.platform(),
+        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        **extra,
+    }

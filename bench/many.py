@@ -62,10 +62,17 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "many.json"))
     args = ap.parse_args()
     lines = Path("/proc/cpuinfo").read_text().splitlines()
-    cpu = next((x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
-               platform.processor())  # fmt: skip
-    info = {"cpu": cpu, "cores": usable_cores(), "load_average_before": os.getloadavg(),
-            "python": platform.python_version(), "mujoco": mujoco.__version__}  # fmt: skip
+    cpu = next(
+        (x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
+        platform.processor(),
+    )
+    info = {
+        "cpu": cpu,
+        "cores": usable_cores(),
+        "load_average_before": os.getloadavg(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+    }
     rates: dict[int, list[float]] = {1: [], 2: []}
     cpu: dict[int, list[float]] = {1: [], 2: []}
     busy: dict[int, list[float]] = {1: [], 2: []}
@@ -78,17 +85,27 @@ def main() -> None:
                 rates[w].append(rate)
                 cpu[w].append(c)
                 busy[w].append(b)
-                print(f"run {run + 1}: {w} process(es): {rate:.2f} scores/s; in the workers "
-                      f"{c:.2f} s CPU, {b:.2f} s elapsed", flush=True)
+                print(
+                    f"run {run + 1}: {w} process(es): {rate:.2f} scores/s; in the workers "
+                    f"{c:.2f} s CPU, {b:.2f} s elapsed",
+                    flush=True,
+                )
     info["load_average_after"] = os.getloadavg()
     m1, m2 = statistics.median(rates[1]), statistics.median(rates[2])
-    result = {"machine": info, "scores": len(paths), "fps": 50, "runs": args.runs,
-              "scores_per_s": {"1": rates[1], "2": rates[2]},
-              "median_1": m1, "median_2": m2, "ratio_2_over_1": m2 / m1,
-              "ratio_per_run": [b / a for a, b in zip(rates[1], rates[2], strict=True)],
-              "worker_cpu_s": {"1": cpu[1], "2": cpu[2]},
-              "worker_elapsed_s": {"1": busy[1], "2": busy[2]},
-              "cpu_share_1": statistics.median(c / b for c, b in zip(cpu[1], busy[1], strict=True))}  # fmt: skip
+    result = {
+        "machine": info,
+        "scores": len(paths),
+        "fps": 50,
+        "runs": args.runs,
+        "scores_per_s": {"1": rates[1], "2": rates[2]},
+        "median_1": m1,
+        "median_2": m2,
+        "ratio_2_over_1": m2 / m1,
+        "ratio_per_run": [b / a for a, b in zip(rates[1], rates[2], strict=True)],
+        "worker_cpu_s": {"1": cpu[1], "2": cpu[2]},
+        "worker_elapsed_s": {"1": busy[1], "2": busy[2]},
+        "cpu_share_1": statistics.median(c / b for c, b in zip(cpu[1], busy[1], strict=True)),
+    }
     Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result, indent=1))
 

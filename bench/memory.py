@@ -31,13 +31,23 @@ def long_score(duration: float) -> dict:
         s = json.loads((ROOT / "examples" / f"{SIGNS[i % len(SIGNS)]}.json").read_text())
         root = s["root"]
         d = root["end"] - root["start"]
-        children.append({**root, "name": f"S{i}_{root['name']}", "start": round(t, 6),
-                         "end": round(t + d, 6)})  # fmt: skip
+        children.append(
+            {**root, "name": f"S{i}_{root['name']}", "start": round(t, 6), "end": round(t + d, 6)}
+        )
         t += d + 0.1
         i += 1
-    return {"format": "azee-score", "version": 1, "strong_side": "R",
-            "root": {"name": "LONG", "kind": "sync", "start": 0.0, "end": round(t, 6),
-                     "children": children}}  # fmt: skip
+    return {
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "LONG",
+            "kind": "sync",
+            "start": 0.0,
+            "end": round(t, 6),
+            "children": children,
+        },
+    }
 
 
 def measure(duration: float, tmp: Path) -> dict:
@@ -47,14 +57,23 @@ def measure(duration: float, tmp: Path) -> dict:
     out = tmp / f"long{duration:g}.npz"
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1")
     t0 = time.perf_counter()
-    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "realize", str(path), "-o",
-                          str(out)], env=env, stdout=subprocess.PIPE, text=True)  # fmt: skip
+    p = subprocess.Popen(
+        [sys.executable, "-m", "azee_mj.cli", "realize", str(path), "-o", str(out)],
+        env=env,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     _, status, usage = os.wait4(p.pid, 0)
     wall = time.perf_counter() - t0
     line = p.stdout.read().splitlines()[0] if p.stdout else ""
-    return {"duration_s": score["root"]["end"], "exit": os.waitstatus_to_exitcode(status),
-            "peak_rss_mb": usage.ru_maxrss / 1024, "wall_s": wall,
-            "file_mb": out.stat().st_size / 1e6 if out.exists() else None, "summary": line}
+    return {
+        "duration_s": score["root"]["end"],
+        "exit": os.waitstatus_to_exitcode(status),
+        "peak_rss_mb": usage.ru_maxrss / 1024,
+        "wall_s": wall,
+        "file_mb": out.stat().st_size / 1e6 if out.exists() else None,
+        "summary": line,
+    }
 
 
 def main():
@@ -67,8 +86,11 @@ def main():
         for dur in args.durations:
             rows.append(measure(dur, Path(d)))
             r = rows[-1]
-            print(f"{r['duration_s']:7.1f} s: peak {r['peak_rss_mb']:6.1f} MB, {r['wall_s']:6.1f} s"
-                  f" wall, exit {r['exit']}; {r['summary']}", flush=True)
+            print(
+                f"{r['duration_s']:7.1f} s: peak {r['peak_rss_mb']:6.1f} MB, {r['wall_s']:6.1f} s"
+                f" wall, exit {r['exit']}; {r['summary']}",
+                flush=True,
+            )
     res = ROOT / "bench" / "results"
     res.mkdir(exist_ok=True)
     (res / "memory.json").write_text(json.dumps(rows, indent=1) + "\n")
@@ -76,8 +98,10 @@ def main():
         print("| score [s] | peak RSS [MB] | wall time [s] | rollout file [MB] |")
         print("| --- | --- | --- | --- |")
         for r in rows:
-            print(f"| {r['duration_s']:.1f} | {r['peak_rss_mb']:.0f} | {r['wall_s']:.1f} | "
-                  f"{r['file_mb']:.1f} |")
+            print(
+                f"| {r['duration_s']:.1f} | {r['peak_rss_mb']:.0f} | {r['wall_s']:.1f} | "
+                f"{r['file_mb']:.1f} |"
+            )
 
 
 if __name__ == "__main__":

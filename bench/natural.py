@@ -48,6 +48,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
+from machine import machine
+
 from azee_mj import constraints as cn
 from azee_mj import ik, load_model
 from azee_mj import kinematics as kin
@@ -56,7 +58,6 @@ from azee_mj.schedule import constraint_tracks, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP, resolve_side
 from azee_mj.timeline import realize
-from machine import machine
 
 FPS = 50.0
 HOLD = (0.4, 0.8)  # [s] the contact block
@@ -66,10 +67,15 @@ DEG = np.pi / 180.0
 
 #: Targets of issue 10.
 TARGETS = {
-    "contact_mm": 1.0, "pair_penetration_mm": cn.CONTACT_ALLOWANCE * 1e3,
-    "other_penetration_mm": cn.COLLISION_TOL * 1e3, "trunk_deg": 10.0, "head_deg": 15.0, "rula": 4,
-    "mirror_mm": 5.0, "joint_speed": 25.0,
-}  # fmt: skip
+    "contact_mm": 1.0,
+    "pair_penetration_mm": cn.CONTACT_ALLOWANCE * 1e3,
+    "other_penetration_mm": cn.COLLISION_TOL * 1e3,
+    "trunk_deg": 10.0,
+    "head_deg": 15.0,
+    "rula": 4,
+    "mirror_mm": 5.0,
+    "joint_speed": 25.0,
+}
 
 # Hand shapes as signers make them: morph id -> weight.
 FLAT = {"flat": 1.0}
@@ -120,9 +126,7 @@ CONTACTS = (
 #: the realizer's reason and not counted in it: the back of the fist on the front of the
 #: belly needs the shoulder's internal rotation at about 110 degrees (AAOS: 70); measured
 #: with ``bench/facing.py``.
-BEYOND = (
-    ("fist-back-stomach", "body", FIST, None, "@H_BACK(s)", "@AB(s)"),
-)
+BEYOND = (("fist-back-stomach", "body", FIST, None, "@H_BACK(s)", "@AB(s)"),)
 QUICK = ("palm-palm", "index-tip-chin", "palm-cheek", "palm-chest", "index-tip-elbow")
 
 
@@ -130,18 +134,37 @@ def contact_score(contact, strong_side: str = "R") -> dict:
     """The score of one contact (a JSON object in the ``azee-score`` format)."""
     name, _, strong, weak, site, at = contact
     morphs = [{"type": "morph", "id": k, "weight": v, "side": "s"} for k, v in strong.items()]
-    morphs += [{"type": "morph", "id": k, "weight": v, "side": "w"}
-               for k, v in (weak or {}).items()]  # fmt: skip
+    morphs += [
+        {"type": "morph", "id": k, "weight": v, "side": "w"} for k, v in (weak or {}).items()
+    ]
     return {
-        "format": "azee-score", "version": 1, "strong_side": strong_side,
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": strong_side,
         "x-source": f"bench/natural.py contact {name}",
-        "root": {"name": "C", "kind": "sync", "start": 0.0, "end": DURATION, "children": [
-            {"name": "SHAPE", "kind": "cstr", "start": 0.0, "end": DURATION,
-             "constraints": morphs},
-            {"name": "TOUCH", "kind": "cstr", "start": HOLD[0], "end": HOLD[1],
-             "constraints": [{"type": "place", "site": site, "at": at}]},
-        ]},
-    }  # fmt: skip
+        "root": {
+            "name": "C",
+            "kind": "sync",
+            "start": 0.0,
+            "end": DURATION,
+            "children": [
+                {
+                    "name": "SHAPE",
+                    "kind": "cstr",
+                    "start": 0.0,
+                    "end": DURATION,
+                    "constraints": morphs,
+                },
+                {
+                    "name": "TOUCH",
+                    "kind": "cstr",
+                    "start": HOLD[0],
+                    "end": HOLD[1],
+                    "constraints": [{"type": "place", "site": site, "at": at}],
+                },
+            ],
+        },
+    }
 
 
 def mirror_name(name: str) -> str:
@@ -190,7 +213,9 @@ class Measure:
             return frozenset((self.site_body(site),)), frozenset((self.site_body(at),))
         return a, b
 
-    def penetration(self, q, pair: tuple[frozenset[int], frozenset[int]]) -> tuple[float, float, str]:
+    def penetration(
+        self, q, pair: tuple[frozenset[int], frozenset[int]]
+    ) -> tuple[float, float, str]:
         """(deepest between the two parts of ``pair``, deepest elsewhere [m], >= 0; the
         bodies of the deepest elsewhere as ``a/b``)."""
         a, b = pair
@@ -215,18 +240,30 @@ class Measure:
         e = ergonomics(self.m, q)
         r = e.rula
         return {
-            "trunk_deg": e.trunk_angle / DEG, "head_deg": e.head_angle / DEG,
+            "trunk_deg": e.trunk_angle / DEG,
+            "head_deg": e.head_angle / DEG,
             "gaze_deg": e.gaze_deviation / DEG,
             "elbow_above_shoulder_mm": {s: e.arm(s).elbow_above_shoulder * 1e3 for s in "RL"},
             "hand_above_eyes_mm": {s: e.arm(s).hand_above_eyes * 1e3 for s in "RL"},
             "elbows_ok": bool(e.elbows_ok()),
             "rula": r.score,
-            "rula_parts": {"neck": r.neck, "trunk": r.trunk, "score_b": r.score_b,
-                           **{f"{a.side}": {"upper_arm": a.upper_arm, "lower_arm": a.lower_arm,
-                                            "wrist": a.wrist, "wrist_twist": a.wrist_twist,
-                                            "score_a": a.score_a, "score": a.score}
-                              for a in (r.right, r.left)}},
-        }  # fmt: skip
+            "rula_parts": {
+                "neck": r.neck,
+                "trunk": r.trunk,
+                "score_b": r.score_b,
+                **{
+                    f"{a.side}": {
+                        "upper_arm": a.upper_arm,
+                        "lower_arm": a.lower_arm,
+                        "wrist": a.wrist,
+                        "wrist_twist": a.wrist_twist,
+                        "score_a": a.score_a,
+                        "score": a.score,
+                    }
+                    for a in (r.right, r.left)
+                },
+            },
+        }
 
     def mirror_error(self, pos_r: np.ndarray, pos_l: np.ndarray) -> float:
         """Worst distance [m] between a left-handed site and the mirror of its right-handed
@@ -249,7 +286,11 @@ def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict
     pens = [meas.penetration(q, pair) for q in ro.qpos]
     dq = np.abs(np.diff(ro.qpos[:, meas.hinge_q], axis=0)) * FPS
     rec = {
-        "contact": contact[0], "group": contact[1], "side": side, "site": site, "at": at,
+        "contact": contact[0],
+        "group": contact[1],
+        "side": side,
+        "site": site,
+        "at": at,
         "residual_mm": max(t.worst for t in touch) * 1e3,
         "pair_penetration_mm": max(pens[i][0] for i in in_hold) * 1e3,
         "other_penetration_mm": max(p[1] for p in pens) * 1e3,
@@ -257,9 +298,13 @@ def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict
         **meas.posture(ro.qpos[held]),
         "max_joint_speed": float(dq.max()) if dq.size else 0.0,
         "reason": "; ".join(dict.fromkeys(t.reason for t in touch if t.reason)),
-        "fastest_joint": meas.m.joint(int(meas.hinge[np.unravel_index(dq.argmax(), dq.shape)[1]])).name,
-        "time_s": wall, "solve_time_s": ro.stats.solve_time, "ik_problems": ro.stats.problems,
-    }  # fmt: skip
+        "fastest_joint": meas.m.joint(
+            int(meas.hinge[np.unravel_index(dq.argmax(), dq.shape)[1]])
+        ).name,
+        "time_s": wall,
+        "solve_time_s": ro.stats.solve_time,
+        "ik_problems": ro.stats.problems,
+    }
     return rec, ro
 
 
@@ -281,8 +326,10 @@ def mink_problem(contact, side: str, model: mujoco.MjModel):
     tracks = set(constraint_tracks(touch.constraints[0], model)) | {"spine"}
     free = tuple(j for t in sorted(tracks) for j in DEFAULT_MAP.tracks[t])
     site, at = (_resolve(x, side) for x in contact[4:6])
-    prob = ik.IKProblem((cn.Place(DEFAULT_MAP.sites[site], kin.SitePos(DEFAULT_MAP.sites[at]),
-                                  0.001, "TOUCH"),), free)  # fmt: skip
+    prob = ik.IKProblem(
+        (cn.Place(DEFAULT_MAP.sites[site], kin.SitePos(DEFAULT_MAP.sites[at]), 0.001, "TOUCH"),),
+        free,
+    )
     k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
     q0 = model.key_qpos[k].copy()
     shapes = [(contact[2], side), (contact[3] or {}, {"R": "L", "L": "R"}[side])]
@@ -303,19 +350,29 @@ def run_mink(contact, side: str, meas: Measure, mk) -> tuple[dict, np.ndarray]:
     q, iters, t = mk.solve(prob, q0)
     meas.d.qpos[:] = q
     mujoco.mj_kinematics(meas.m, meas.d)
-    p = [meas.d.site_xpos[mujoco.mj_name2id(meas.m, mujoco.mjtObj.mjOBJ_SITE, DEFAULT_MAP.sites[x])]
-         for x in (site, at)]  # fmt: skip
+    p = [
+        meas.d.site_xpos[mujoco.mj_name2id(meas.m, mujoco.mjtObj.mjOBJ_SITE, DEFAULT_MAP.sites[x])]
+        for x in (site, at)
+    ]
     pair = meas.contact_pair(site, at)
     pp, po, where = meas.penetration(q, pair)
-    sids = [mujoco.mj_name2id(meas.m, mujoco.mjtObj.mjOBJ_SITE, s)
-            for s in DEFAULT_MAP.sites.values()]  # fmt: skip
+    sids = [
+        mujoco.mj_name2id(meas.m, mujoco.mjtObj.mjOBJ_SITE, s) for s in DEFAULT_MAP.sites.values()
+    ]
     rec = {
-        "contact": contact[0], "group": contact[1], "side": side, "site": site, "at": at,
+        "contact": contact[0],
+        "group": contact[1],
+        "side": side,
+        "site": site,
+        "at": at,
         "residual_mm": float(np.linalg.norm(p[0] - p[1])) * 1e3,
-        "pair_penetration_mm": pp * 1e3, "other_penetration_mm": po * 1e3,
+        "pair_penetration_mm": pp * 1e3,
+        "other_penetration_mm": po * 1e3,
         "other_penetration_bodies": where,
-        **meas.posture(q), "iterations": int(iters), "time_s": t,
-    }  # fmt: skip
+        **meas.posture(q),
+        "iterations": int(iters),
+        "time_s": t,
+    }
     return rec, meas.d.site_xpos[sids].copy()[None]
 
 
@@ -344,8 +401,15 @@ def summarise(recs: list[dict]) -> dict:
     for k in keys:
         out[k] = int(sum(verdicts(r)[k] for r in recs))
     out["all_targets"] = int(sum(all(verdicts(r).values()) for r in recs))
-    for k in ("residual_mm", "trunk_deg", "head_deg", "rula", "pair_penetration_mm",
-              "other_penetration_mm", "time_s"):  # fmt: skip
+    for k in (
+        "residual_mm",
+        "trunk_deg",
+        "head_deg",
+        "rula",
+        "pair_penetration_mm",
+        "other_penetration_mm",
+        "time_s",
+    ):
         vals = np.array([r[k] for r in recs], float)
         out[f"median_{k}"] = float(np.median(vals))
         out[f"worst_{k}"] = float(vals.max())
@@ -357,8 +421,10 @@ def summarise(recs: list[dict]) -> dict:
 
 
 def table(recs: list[dict]) -> str:
-    head = ("| contact | side | residual mm | pen. pair / other mm | trunk deg | head deg "
-            "| elbow-shoulder R / L mm | RULA | mirror mm | max rad/s | time s | targets missed |")
+    head = (
+        "| contact | side | residual mm | pen. pair / other mm | trunk deg | head deg "
+        "| elbow-shoulder R / L mm | RULA | mirror mm | max rad/s | time s | targets missed |"
+    )
     lines = [head, "|" + " --- |" * 12]
     for r in recs:
         miss = [k for k, ok in verdicts(r).items() if not ok]
@@ -369,15 +435,20 @@ def table(recs: list[dict]) -> str:
             f"| {r['trunk_deg']:.1f} | {r['head_deg']:.1f} | {e['R']:.0f} / {e['L']:.0f} "
             f"| {r['rula']} | {r.get('mirror_mm', float('nan')):.1f} "
             f"| {r.get('max_joint_speed', float('nan')):.1f} | {r['time_s']:.2f} "
-            f"| {', '.join(miss) or '-'} |")
+            f"| {', '.join(miss) or '-'} |"
+        )
     return "\n".join(lines)
 
 
 def compact_table(recs: list[dict]) -> str:
     """One row per contact, right / left-handed values side by side."""
-    lines = [("| contact | residual mm R / L | pen. pair mm R / L | pen. other mm R / L "
-             "| trunk deg R / L | head deg R / L | RULA R / L | mirror mm | max rad/s | missed |"),
-             "|" + " --- |" * 10]
+    lines = [
+        (
+            "| contact | residual mm R / L | pen. pair mm R / L | pen. other mm R / L "
+            "| trunk deg R / L | head deg R / L | RULA R / L | mirror mm | max rad/s | missed |"
+        ),
+        "|" + " --- |" * 10,
+    ]
     by = {}
     for r in recs:
         by.setdefault(r["contact"], {})[r["side"]] = r
@@ -391,27 +462,44 @@ def compact_table(recs: list[dict]) -> str:
             f"| {r['trunk_deg']:.0f} / {le['trunk_deg']:.0f} | {r['head_deg']:.0f} / "
             f"{le['head_deg']:.0f} | {r['rula']} / {le['rula']} | {r['mirror_mm']:.1f} "
             f"| {max(r.get('max_joint_speed', 0.0), le.get('max_joint_speed', 0.0)):.1f} "
-            f"| {', '.join(miss) or '-'} |")
+            f"| {', '.join(miss) or '-'} |"
+        )
     return "\n".join(lines)
 
 
 def summary_table(summaries: dict[str, dict]) -> str:
-    keys = ["contact", "pair_pen", "other_pen", "trunk", "head", "elbows", "rula", "mirror",
-            "speed", "all_targets"]  # fmt: skip
-    lines = ["| solver | runs | " + " | ".join(keys) + " | median / worst residual mm "
-             "| worst trunk / head deg | median time s |",
-             "|" + " --- |" * (len(keys) + 5)]
+    keys = [
+        "contact",
+        "pair_pen",
+        "other_pen",
+        "trunk",
+        "head",
+        "elbows",
+        "rula",
+        "mirror",
+        "speed",
+        "all_targets",
+    ]
+    lines = [
+        "| solver | runs | " + " | ".join(keys) + " | median / worst residual mm "
+        "| worst trunk / head deg | median time s |",
+        "|" + " --- |" * (len(keys) + 5),
+    ]
     for name, s in summaries.items():
         cells = [str(s[k]) if k in s else "n/a" for k in keys]
-        lines.append(f"| {name} | {s['runs']} | " + " | ".join(cells)
-                     + f" | {s['median_residual_mm']:.2f} / {s['worst_residual_mm']:.1f} "
-                     f"| {s['worst_trunk_deg']:.0f} / {s['worst_head_deg']:.0f} "
-                     f"| {s['median_time_s']:.2f} |")  # fmt: skip
+        lines.append(
+            f"| {name} | {s['runs']} | "
+            + " | ".join(cells)
+            + f" | {s['median_residual_mm']:.2f} / {s['worst_residual_mm']:.1f} "
+            f"| {s['worst_trunk_deg']:.0f} / {s['worst_head_deg']:.0f} "
+            f"| {s['median_time_s']:.2f} |"
+        )
     return "\n".join(lines)
 
 
-def contact_sheet(path: Path, contacts, postures: dict[str, np.ndarray], recs: dict[str, dict],
-                  size=(320, 360)) -> None:
+def contact_sheet(
+    path: Path, contacts, postures: dict[str, np.ndarray], recs: dict[str, dict], size=(320, 360)
+) -> None:
     """Render each contact's held posture (right-handed) as a labelled tile."""
     from PIL import Image, ImageDraw
 
@@ -437,8 +525,13 @@ def contact_sheet(path: Path, contacts, postures: dict[str, np.ndarray], recs: d
             x, y = (k % cols) * w, (k // cols) * h
             sheet.paste(Image.fromarray(r.render()), (x, y))
             rec = recs[c[0]]
-            lines = [c[0] + (" (beyond reach)" if c in BEYOND else ""), (f"{rec['residual_mm']:.1f} mm  trunk {rec['trunk_deg']:.0f}  "
-                            f"head {rec['head_deg']:.0f}  RULA {rec['rula']}")]
+            lines = [
+                c[0] + (" (beyond reach)" if c in BEYOND else ""),
+                (
+                    f"{rec['residual_mm']:.1f} mm  trunk {rec['trunk_deg']:.0f}  "
+                    f"head {rec['head_deg']:.0f}  RULA {rec['rula']}"
+                ),
+            ]
             draw.rectangle((x, y, x + w, y + 30), fill=(0, 0, 0))
             for i, t in enumerate(lines):
                 draw.text((x + 4, y + 3 + 13 * i), t, fill=(255, 255, 255))
@@ -453,8 +546,9 @@ def main(argv=None) -> int:
     ap.add_argument("--label", help="write bench/results/natural-LABEL.json")
     ap.add_argument("--no-mink", action="store_true", help="skip the mink baseline")
     ap.add_argument("--sheet", type=Path, help="render the right-handed contact sheet here")
-    ap.add_argument("--markdown", action="store_true",
-                    help="print one row per contact (R / L side by side)")
+    ap.add_argument(
+        "--markdown", action="store_true", help="print one row per contact (R / L side by side)"
+    )
     args = ap.parse_args(argv)
     contacts = [c for c in CONTACTS if not args.quick or c[0] in QUICK]
     meas = Measure()
@@ -469,8 +563,11 @@ def main(argv=None) -> int:
         (beyond_recs if c in beyond else ours).extend((rr, rl))
         postures[c[0]] = ro_r.qpos[round(HELD_T * FPS)]
         by_name[c[0]] = rr
-        print(f"{c[0]}: R {rr['residual_mm']:.2f} mm, L {rl['residual_mm']:.2f} mm, "
-              f"mirror {mir:.1f} mm", file=sys.stderr)  # fmt: skip
+        print(
+            f"{c[0]}: R {rr['residual_mm']:.2f} mm, L {rl['residual_mm']:.2f} mm, "
+            f"mirror {mir:.1f} mm",
+            file=sys.stderr,
+        )
     label = args.label or "ours"
     summaries = {label: summarise(ours)}
     mink_recs = []
@@ -489,26 +586,46 @@ def main(argv=None) -> int:
     print()
     print(summary_table(summaries))
     for r in beyond_recs:
-        print(f"\nbeyond reach, not counted: {r['contact']} {r['side']}: "
-              f"{r['residual_mm']:.2f} mm: {r['reason'] or 'met'}")
+        print(
+            f"\nbeyond reach, not counted: {r['contact']} {r['side']}: "
+            f"{r['residual_mm']:.2f} mm: {r['reason'] or 'met'}"
+        )
     if args.sheet:
         contact_sheet(args.sheet, contacts + beyond, postures, by_name)
         print(f"wrote {args.sheet}", file=sys.stderr)
     if args.label or not args.quick:
         out = HERE / "results" / (f"natural-{args.label}.json" if args.label else "natural.json")
         doc = {
-            "machine": machine(), "label": label, "quick": args.quick,
-            "settings": {"fps": FPS, "hold_s": HOLD, "held_frame_s": HELD_T, "tol_m": 0.001,
-                         "targets": TARGETS,
-                         "mink": {"free": "the constraint's tracks + spine", "start": "home "
-                                  "with the hand shapes", "dt": baselines.MINK_DT if not
-                                  args.no_mink else None}},
-            "contacts": [{"name": c[0], "group": c[1], "strong_shape": c[2], "weak_shape": c[3],
-                          "site": c[4], "at": c[5]} for c in contacts],
+            "machine": machine(),
+            "label": label,
+            "quick": args.quick,
+            "settings": {
+                "fps": FPS,
+                "hold_s": HOLD,
+                "held_frame_s": HELD_T,
+                "tol_m": 0.001,
+                "targets": TARGETS,
+                "mink": {
+                    "free": "the constraint's tracks + spine",
+                    "start": "home with the hand shapes",
+                    "dt": baselines.MINK_DT if not args.no_mink else None,
+                },
+            },
+            "contacts": [
+                {
+                    "name": c[0],
+                    "group": c[1],
+                    "strong_shape": c[2],
+                    "weak_shape": c[3],
+                    "site": c[4],
+                    "at": c[5],
+                }
+                for c in contacts
+            ],
             "beyond": [{"name": c[0], "site": c[4], "at": c[5]} for c in beyond],
             "summary": summaries,
             "records": {label: ours, "mink": mink_recs, "beyond": beyond_recs},
-        }  # fmt: skip
+        }
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = out.with_name(out.name + ".tmp")
         tmp.write_text(json.dumps(doc, indent=1) + "\n")

@@ -29,10 +29,27 @@ from azee_mj import kinematics as kin
 from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
-ARM = ("clav_{X}_elev", "clav_{X}_prot", "arm_{X}_flex", "arm_{X}_abd", "arm_{X}_rot",
-       "f_arm_{X}_flex", "f_arm_{X}_pron", "palm_{X}_flex", "palm_{X}_dev")
-HAND_SITES = ("I_TIP_{X}", "T_TIP_{X}", "M_TIP_{X}", "PA_{X}", "WR_{X}", "H_BACK_{X}",
-              "L_TIP_{X}", "EL_{X}")
+ARM = (
+    "clav_{X}_elev",
+    "clav_{X}_prot",
+    "arm_{X}_flex",
+    "arm_{X}_abd",
+    "arm_{X}_rot",
+    "f_arm_{X}_flex",
+    "f_arm_{X}_pron",
+    "palm_{X}_flex",
+    "palm_{X}_dev",
+)
+HAND_SITES = (
+    "I_TIP_{X}",
+    "T_TIP_{X}",
+    "M_TIP_{X}",
+    "PA_{X}",
+    "WR_{X}",
+    "H_BACK_{X}",
+    "L_TIP_{X}",
+    "EL_{X}",
+)
 FACE_SITES = ("CH", "NO", "FH", "CK_{X}", "MO", "TE_{X}", "EAR_{X}")
 OTHER_HAND = ("PA_{X}", "H_BACK_{X}", "I_TIP_{X}", "WR_{X}", "F_ARM_{X}")
 
@@ -48,7 +65,12 @@ class Keyframe:
 
 def _joints(sides=("R", "L")):
     return tuple(j.format(X=s) for s in sides for j in ARM) + (
-        "back_1_flex", "back_2_flex", "back_2_rot", "neck_flex", "head_rot")
+        "back_1_flex",
+        "back_2_flex",
+        "back_2_rot",
+        "neck_flex",
+        "head_rot",
+    )
 
 
 #: Largest change of one free joint between consecutive truth postures of a sequence [rad].
@@ -82,8 +104,9 @@ def random_posture(solver: ik.Solver, rng: np.random.Generator) -> np.ndarray:
             return q
 
 
-def next_posture(solver: ik.Solver, q: np.ndarray, rng: np.random.Generator,
-                 step: float = STEP) -> np.ndarray:
+def next_posture(
+    solver: ik.Solver, q: np.ndarray, rng: np.random.Generator, step: float = STEP
+) -> np.ndarray:
     """``q`` plus a uniform random change of at most ``step`` [rad] per free joint, clipped
     to the middle 90 % of the arm ranges (trunk and neck as in :func:`random_posture`),
     redrawn until collision-free."""
@@ -112,8 +135,11 @@ def _read_off(solver, q, rng, n_place, n_orient, with_perp=True):
     for i in range(n_place):
         side = sides[i % 2]
         site = rng.choice(HAND_SITES).format(X=side)
-        cons.append(cn.Place(site, kin.Const(tuple(d.site_xpos[solver.site_id(site)])),
-                             label=f"place {site}"))
+        cons.append(
+            cn.Place(
+                site, kin.Const(tuple(d.site_xpos[solver.site_id(site)])), label=f"place {site}"
+            )
+        )
     bones = ["palm_{X}", "f_arm_{X}", "index_{X}_3", "arm_{X}"]
     for i in range(n_orient):
         side = sides[i % 2]
@@ -124,19 +150,29 @@ def _read_off(solver, q, rng, n_place, n_orient, with_perp=True):
         if with_perp and i % 3 == 2:
             v = np.cross(a, rng.normal(size=3))
             v /= np.linalg.norm(v)
-            cons.append(cn.Orient(bone.body, axis, cn.Rel.PERP, kin.Const(tuple(v)),
-                                  label=f"perp {bone.body}"))
+            cons.append(
+                cn.Orient(
+                    bone.body, axis, cn.Rel.PERP, kin.Const(tuple(v)), label=f"perp {bone.body}"
+                )
+            )
         elif rng.random() < 0.5:
-            cons.append(cn.Orient(bone.body, axis, cn.Rel.ALONG, kin.Const(tuple(a)),
-                                  label=f"along {bone.body}"))
+            cons.append(
+                cn.Orient(
+                    bone.body, axis, cn.Rel.ALONG, kin.Const(tuple(a)), label=f"along {bone.body}"
+                )
+            )
         else:
-            cons.append(cn.Orient(bone.body, axis, cn.Rel.OPP, kin.Const(tuple(-a)),
-                                  label=f"opp {bone.body}"))
+            cons.append(
+                cn.Orient(
+                    bone.body, axis, cn.Rel.OPP, kin.Const(tuple(-a)), label=f"opp {bone.body}"
+                )
+            )
     return cons
 
 
-def make_keyframes(n: int = 200, seed: int = 0, solver: ik.Solver | None = None,
-                   sequence: bool = True) -> list[Keyframe]:
+def make_keyframes(
+    n: int = 200, seed: int = 0, solver: ik.Solver | None = None, sequence: bool = True
+) -> list[Keyframe]:
     """``n`` reachable keyframes: 1/2 free placements, 1/4 two-hand, 1/4 hand-to-face.
 
     With ``sequence`` (the default) each truth posture is a bounded random change of the
@@ -197,30 +233,48 @@ def _cons(c) -> dict:
     if isinstance(c, cn.Place):
         return {"place": c.site, "target": _expr(c.target), "tol": c.tol, "label": c.label}
     if isinstance(c, cn.Orient):
-        return {"orient": c.body, "local": list(c.local), "rel": c.rel.value,
-                "vector": _expr(c.vector), "tol": c.tol, "label": c.label}  # fmt: skip
+        return {
+            "orient": c.body,
+            "local": list(c.local),
+            "rel": c.rel.value,
+            "vector": _expr(c.vector),
+            "tol": c.tol,
+            "label": c.label,
+        }
     raise TypeError(f"not stored: {c!r}")
 
 
 def _uncons(o: dict):
     if "place" in o:
         return cn.Place(o["place"], _unexpr(o["target"]), o["tol"], o["label"])
-    return cn.Orient(o["orient"], tuple(o["local"]), cn.Rel(o["rel"]), _unexpr(o["vector"]),
-                     o["tol"], o["label"])  # fmt: skip
+    return cn.Orient(
+        o["orient"], tuple(o["local"]), cn.Rel(o["rel"]), _unexpr(o["vector"]), o["tol"], o["label"]
+    )
 
 
 def save_keyframes(kfs: list[Keyframe], path=DATA, **meta) -> None:
     """Write ``kfs`` (and ``meta``, e.g. how they were made) to JSON."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    rows = [{"kind": k.kind, "free_joints": list(k.problem.free_joints),
-             "constraints": [_cons(c) for c in k.problem.constraints],
-             "truth": [float(x) for x in k.truth]} for k in kfs]  # fmt: skip
+    rows = [
+        {
+            "kind": k.kind,
+            "free_joints": list(k.problem.free_joints),
+            "constraints": [_cons(c) for c in k.problem.constraints],
+            "truth": [float(x) for x in k.truth],
+        }
+        for k in kfs
+    ]
     path.write_text(json.dumps({"meta": meta, "keyframes": rows}) + "\n")
 
 
 def load_keyframes(path=DATA) -> list[Keyframe]:
     """The stored keyframes (see :func:`save_keyframes`)."""
     rows = json.loads(path.read_text())["keyframes"]
-    return [Keyframe(r["kind"], ik.IKProblem(tuple(_uncons(c) for c in r["constraints"]),
-                                             tuple(r["free_joints"])), np.array(r["truth"]))
-            for r in rows]  # fmt: skip
+    return [
+        Keyframe(
+            r["kind"],
+            ik.IKProblem(tuple(_uncons(c) for c in r["constraints"]), tuple(r["free_joints"])),
+            np.array(r["truth"]),
+        )
+        for r in rows
+    ]

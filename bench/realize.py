@@ -20,14 +20,14 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import mujoco
+import numpy as np
+from machine import cpu
 
-from azee_mj import timeline  # noqa: E402
-from azee_mj.schedule import make_solver  # noqa: E402
-from azee_mj.ergonomics import ergonomics  # noqa: E402
-from azee_mj.score import load_score  # noqa: E402
-from machine import cpu  # noqa: E402
+from azee_mj import timeline
+from azee_mj.ergonomics import ergonomics
+from azee_mj.schedule import make_solver
+from azee_mj.score import load_score
 
 ROOT = Path(__file__).resolve().parent.parent
 SIGNS = ["bien", "pointing", "arbre", "info-about", "penser"]
@@ -42,8 +42,12 @@ def sentence(names: list[str]) -> dict:
         d = root["end"] - root["start"]
         children.append({**root, "name": f"S{i}_{root['name']}", "start": t, "end": t + d})
         t += d + 0.1
-    return {"format": "azee-score", "version": 1, "strong_side": "R",
-            "root": {"name": "SENTENCE", "kind": "sync", "start": 0.0, "end": t, "children": children}}
+    return {
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {"name": "SENTENCE", "kind": "sync", "start": 0.0, "end": t, "children": children},
+    }
 
 
 def count_blocks(score) -> int:
@@ -59,11 +63,18 @@ def run(names, solver, repeats=1):
         dt = time.perf_counter() - t0
         best = dt if best is None else min(best, dt)
     return {
-        "signs": names, "duration_s": score.duration, "blocks": count_blocks(score),
-        "frames": len(r.time), "realize_s": best, "realtime_factor": score.duration / best,
-        "ik_problems": r.stats.problems, "key_problems": r.stats.key_problems,
-        "iterations": r.stats.iterations, "not_converged": r.stats.not_converged,
-        "constraints_ok": int(sum(bool(t.ok) for t in r.traces)), "constraints": len(r.traces),
+        "signs": names,
+        "duration_s": score.duration,
+        "blocks": count_blocks(score),
+        "frames": len(r.time),
+        "realize_s": best,
+        "realtime_factor": score.duration / best,
+        "ik_problems": r.stats.problems,
+        "key_problems": r.stats.key_problems,
+        "iterations": r.stats.iterations,
+        "not_converged": r.stats.not_converged,
+        "constraints_ok": int(sum(bool(t.ok) for t in r.traces)),
+        "constraints": len(r.traces),
         **naturalness(r, solver),
         "ms_per_frame": 1e3 * best / len(r.time),
         "iterations_per_frame": r.stats.iterations / len(r.time),
@@ -75,9 +86,11 @@ def naturalness(r, solver) -> dict:
     rollout (every 5th frame), by ``azee_mj.ergonomics``."""
     speed = float(np.abs(np.diff(r.qpos, axis=0)).max() * r.fps) if len(r.time) > 1 else 0.0
     e = [ergonomics(solver.model, q) for q in r.qpos[::5]]
-    return {"max_joint_speed": speed,
-            "worst_trunk_deg": float(np.degrees(max(x.trunk_angle for x in e))),
-            "worst_head_deg": float(np.degrees(max(x.head_angle for x in e)))}  # fmt: skip
+    return {
+        "max_joint_speed": speed,
+        "worst_trunk_deg": float(np.degrees(max(x.trunk_angle for x in e))),
+        "worst_head_deg": float(np.degrees(max(x.head_angle for x in e))),
+    }
 
 
 def mirror_error(names, solver) -> float:
@@ -95,8 +108,12 @@ def mirror_error(names, solver) -> float:
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--repeat", type=int, default=3,
-                    help="realizations of each sentence; its time is the best (a noisy machine)")
+    ap.add_argument(
+        "--repeat",
+        type=int,
+        default=3,
+        help="realizations of each sentence; its time is the best (a noisy machine)",
+    )
     args = ap.parse_args()
     solver = make_solver()
     rows = []
@@ -105,12 +122,14 @@ def main():
         names = [SIGNS[i % len(SIGNS)] for i in range(n)]
         rows.append(run(names, solver, args.repeat))
         r = rows[-1]
-        print(f"{n:2d} signs {r['duration_s']:5.2f} s {r['blocks']:3d} blocks: {r['realize_s']:6.3f} s"
-              f" ({r['realtime_factor']:5.1f}x real time), {r['ik_problems']} IK problems,"
-              f" {r['constraints_ok']}/{r['constraints']} ok, {r['ms_per_frame']:.2f} ms and"
-              f" {r['iterations_per_frame']:.1f} iterations per frame, fastest joint"
-              f" {r['max_joint_speed']:.1f} rad/s, trunk / head up to {r['worst_trunk_deg']:.1f} /"
-              f" {r['worst_head_deg']:.1f} deg")
+        print(
+            f"{n:2d} signs {r['duration_s']:5.2f} s {r['blocks']:3d} blocks: {r['realize_s']:6.3f} s"
+            f" ({r['realtime_factor']:5.1f}x real time), {r['ik_problems']} IK problems,"
+            f" {r['constraints_ok']}/{r['constraints']} ok, {r['ms_per_frame']:.2f} ms and"
+            f" {r['iterations_per_frame']:.1f} iterations per frame, fastest joint"
+            f" {r['max_joint_speed']:.1f} rad/s, trunk / head up to {r['worst_trunk_deg']:.1f} /"
+            f" {r['worst_head_deg']:.1f} deg"
+        )
     d = np.array([r["duration_s"] for r in rows])
     c = np.array([r["realize_s"] for r in rows])
     fit = np.polyfit(d, c, 1)
@@ -122,11 +141,19 @@ def main():
     out = {
         "repeat": args.repeat,
         "left_handed_mirror_mm": mirror_mm,
-        "machine": {"cpu": cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
-                    "mujoco": mujoco.__version__, "numpy": np.__version__},
+        "machine": {
+            "cpu": cpu(),
+            "cores": os.cpu_count(),
+            "python": platform.python_version(),
+            "mujoco": mujoco.__version__,
+            "numpy": np.__version__,
+        },
         "rows": rows,
-        "linear_fit": {"seconds_per_score_second": float(fit[0]), "intercept_s": float(fit[1]),
-                       "r2": 1 - float(resid @ resid) / float(((c - c.mean()) ** 2).sum())},
+        "linear_fit": {
+            "seconds_per_score_second": float(fit[0]),
+            "intercept_s": float(fit[1]),
+            "r2": 1 - float(resid @ resid) / float(((c - c.mean()) ** 2).sum()),
+        },
     }
     (ROOT / "bench" / "results").mkdir(exist_ok=True)
     (ROOT / "bench" / "results" / "realize.json").write_text(json.dumps(out, indent=1))

@@ -49,14 +49,23 @@ def render_before(clip, out: Path) -> None:
 
     w, h = SIZE
     m = mujoco.MjModel.from_xml_path(str(rd.SCENE_PATH))
-    m.vis.global_.offwidth, m.vis.global_.offheight = max(m.vis.global_.offwidth, w), max(
-        m.vis.global_.offheight, h)
+    m.vis.global_.offwidth, m.vis.global_.offheight = (
+        max(m.vis.global_.offwidth, w),
+        max(m.vis.global_.offheight, h),
+    )
     m.vis.quality.shadowsize = min(m.vis.quality.shadowsize, 1024)
     d = mujoco.MjData(m)
     cam = rd.camera_id(m, "front")
     with mujoco.Renderer(m, height=h, width=w) as r:
-        writer = imageio.get_writer(out, format="FFMPEG", fps=clip.fps, codec="libx264",
-                                    quality=7, macro_block_size=2, ffmpeg_log_level="error")
+        writer = imageio.get_writer(
+            out,
+            format="FFMPEG",
+            fps=clip.fps,
+            codec="libx264",
+            quality=7,
+            macro_block_size=2,
+            ffmpeg_log_level="error",
+        )
         try:
             for q in clip.qpos:
                 d.qpos[:] = q
@@ -78,9 +87,16 @@ def render_msaa(clip, out: Path) -> None:
     cam = rd.camera_id(m, "front")
     with mujoco.Renderer(m, height=h, width=w) as r:
         r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-        writer = imageio.get_writer(out, format="FFMPEG", fps=clip.fps, codec="libx264",
-                                    quality=7, macro_block_size=2, ffmpeg_log_level="error",
-                                    output_params=["-preset", "veryfast"])  # fmt: skip
+        writer = imageio.get_writer(
+            out,
+            format="FFMPEG",
+            fps=clip.fps,
+            codec="libx264",
+            quality=7,
+            macro_block_size=2,
+            ffmpeg_log_level="error",
+            output_params=["-preset", "veryfast"],
+        )
         with rd.Encoder(writer.append_data, (h, w, 3), close=writer.close) as enc:
             for q in clip.qpos:
                 d.qpos[:] = q
@@ -95,8 +111,9 @@ VARIANTS = {
     "default": lambda clip, out: rd.render(clip, out, size=SIZE),
     "supersampled, 1 process": lambda clip, out: rd.render(clip, out, size=SIZE, workers=1),
     "no-antialias": lambda clip, out: rd.render(clip, out, size=SIZE, antialias=False),
-    "no-antialias, 1 process": lambda clip, out: rd.render(clip, out, size=SIZE,
-                                                           antialias=False, workers=1),
+    "no-antialias, 1 process": lambda clip, out: rd.render(
+        clip, out, size=SIZE, antialias=False, workers=1
+    ),
 }
 
 
@@ -145,19 +162,33 @@ def gl_renderer() -> str:
 
 def machine() -> dict:
     lines = Path("/proc/cpuinfo").read_text().splitlines()
-    cpu = next((x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
-               platform.processor())  # fmt: skip
-    return {"cpu": cpu, "cores": len(os.sched_getaffinity(0)), "load_average": os.getloadavg(),
-            "python": platform.python_version(), "mujoco": mujoco.__version__,
-            "MUJOCO_GL": rd.gl_backend(), "gl_renderer": gl_renderer()}  # fmt: skip
+    cpu = next(
+        (x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
+        platform.processor(),
+    )
+    return {
+        "cpu": cpu,
+        "cores": len(os.sched_getaffinity(0)),
+        "load_average": os.getloadavg(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+        "MUJOCO_GL": rd.gl_backend(),
+        "gl_renderer": gl_renderer(),
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--examples", nargs="+", default=["bien", "arbre", "pointing"])
-    ap.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS),
-                    metavar="NAME", help="settings to run (default: all; 'before' is the base)")
+    ap.add_argument(
+        "--variants",
+        nargs="+",
+        choices=list(VARIANTS),
+        default=list(VARIANTS),
+        metavar="NAME",
+        help="settings to run (default: all; 'before' is the base)",
+    )
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "render.json"))
     args = ap.parse_args()
     variants = {v: VARIANTS[v] for v in VARIANTS if v in args.variants or v == "before"}
@@ -175,28 +206,41 @@ def main() -> None:
                 samples[v]["fps"].append(frames / wall)
                 samples[v]["cpu"].append(cpu / frames)
                 samples[v]["load"].append(os.getloadavg()[0])
-                print(f"run {run + 1}: {v:24s} {frames / wall:5.1f} fps, "
-                      f"{1e3 * cpu / frames:6.1f} ms CPU a frame, load {os.getloadavg()[0]:.1f}",
-                      flush=True)  # fmt: skip
+                print(
+                    f"run {run + 1}: {v:24s} {frames / wall:5.1f} fps, "
+                    f"{1e3 * cpu / frames:6.1f} ms CPU a frame, load {os.getloadavg()[0]:.1f}",
+                    flush=True,
+                )
     info["load_average_after"] = os.getloadavg()
-    result = {"machine": info, "size": SIZE, "examples": args.examples, "runs": args.runs,
-              "frames": int(sum(len(c.qpos) for c in clips.values())), "variants": {}}  # fmt: skip
+    result = {
+        "machine": info,
+        "size": SIZE,
+        "examples": args.examples,
+        "runs": args.runs,
+        "frames": int(sum(len(c.qpos) for c in clips.values())),
+        "variants": {},
+    }
     base = statistics.median(samples["before"]["fps"])
     for v, s in samples.items():
         fps, cpu = statistics.median(s["fps"]), statistics.median(s["cpu"])
-        result["variants"][v] = {"fps_median": fps, "fps_runs": s["fps"],
-                                 "cpu_ms_per_frame_median": 1e3 * cpu,
-                                 "cpu_ms_per_frame_runs": [1e3 * c for c in s["cpu"]],
-                                 "load_average_1min_runs": s["load"],
-                                 "speedup_vs_before": fps / base}  # fmt: skip
+        result["variants"][v] = {
+            "fps_median": fps,
+            "fps_runs": s["fps"],
+            "cpu_ms_per_frame_median": 1e3 * cpu,
+            "cpu_ms_per_frame_runs": [1e3 * c for c in s["cpu"]],
+            "load_average_1min_runs": s["load"],
+            "speedup_vs_before": fps / base,
+        }
     print(json.dumps(result, indent=1))
     Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
     print("| settings | frames per second (median) | runs | CPU per frame [ms] | vs before |")
     print("| --- | --- | --- | --- | --- |")
     for v, r in result["variants"].items():
         runs = ", ".join(f"{x:.1f}" for x in r["fps_runs"])
-        print(f"| {v} | {r['fps_median']:.1f} | {runs} | {r['cpu_ms_per_frame_median']:.0f} | "
-              f"{r['speedup_vs_before']:.2f}x |")
+        print(
+            f"| {v} | {r['fps_median']:.1f} | {runs} | {r['cpu_ms_per_frame_median']:.0f} | "
+            f"{r['speedup_vs_before']:.2f}x |"
+        )
 
 
 if __name__ == "__main__":

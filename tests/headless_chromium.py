@@ -17,10 +17,17 @@ import time
 EXECUTABLES = ("chromium", "chromium-browser", "google-chrome")
 
 FLAGS = (
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--no-first-run",
-    "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--mute-audio",
-)  # fmt: skip
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--enable-unsafe-swiftshader",
+    "--use-angle=swiftshader",
+    "--mute-audio",
+)
 
 
 def find_chromium() -> str | None:
@@ -48,25 +55,39 @@ class Chromium:
         # the browser reads commands on fd 3 and writes replies on fd 4: a shell puts the
         # pipe ends there (bash: dash takes no fd above 9) and execs it
         self.proc = subprocess.Popen(
-            ["bash", "-c", f'exec "$@" 3<&{r_cmd} 4>&{w_res}', "bash", executable, *FLAGS,
-             f"--user-data-dir={self.profile}", "--remote-debugging-pipe",
-             f"--window-size={size[0]},{size[1]}", "about:blank"],
+            [
+                "bash",
+                "-c",
+                f'exec "$@" 3<&{r_cmd} 4>&{w_res}',
+                "bash",
+                executable,
+                *FLAGS,
+                f"--user-data-dir={self.profile}",
+                "--remote-debugging-pipe",
+                f"--window-size={size[0]},{size[1]}",
+                "about:blank",
+            ],
             pass_fds=(r_cmd, w_res),
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )  # fmt: skip
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         os.close(r_cmd)
         os.close(w_res)
         self._w = os.fdopen(w_cmd, "wb", buffering=0)
         self._r = os.fdopen(r_res, "rb", buffering=0)
         self._buf, self._id, self.events = b"", 0, []
-        page = next(t for t in self.send("Target.getTargets")["targetInfos"]
-                    if t["type"] == "page")  # fmt: skip
-        self.session = self.send("Target.attachToTarget",
-                                 {"targetId": page["targetId"], "flatten": True})["sessionId"]
+        page = next(t for t in self.send("Target.getTargets")["targetInfos"] if t["type"] == "page")
+        self.session = self.send(
+            "Target.attachToTarget", {"targetId": page["targetId"], "flatten": True}
+        )["sessionId"]
         for domain in ("Runtime", "Log", "Page"):
             self.send(f"{domain}.enable", session=True)
-        self.send("Emulation.setDeviceMetricsOverride", {"width": size[0], "height": size[1],
-                  "deviceScaleFactor": 1, "mobile": False}, session=True)  # fmt: skip
+        self.send(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": size[0], "height": size[1], "deviceScaleFactor": 1, "mobile": False},
+            session=True,
+        )
 
     def _message(self) -> dict:
         while b"\0" not in self._buf:
@@ -94,8 +115,9 @@ class Chromium:
 
     def evaluate(self, expression: str):
         """The value of a JavaScript expression in the page."""
-        r = self.send("Runtime.evaluate", {"expression": expression, "returnByValue": True},
-                      session=True)  # fmt: skip
+        r = self.send(
+            "Runtime.evaluate", {"expression": expression, "returnByValue": True}, session=True
+        )
         if "exceptionDetails" in r:
             raise RuntimeError(f"{expression}: {r['exceptionDetails']}")
         return r["result"].get("value")
@@ -129,8 +151,9 @@ class Chromium:
 
     def screenshot(self) -> bytes:
         """The page as PNG bytes."""
-        return base64.b64decode(self.send("Page.captureScreenshot", {"format": "png"},
-                                          session=True)["data"])  # fmt: skip
+        return base64.b64decode(
+            self.send("Page.captureScreenshot", {"format": "png"}, session=True)["data"]
+        )
 
     def close(self) -> None:
         """Close the browser and remove its profile."""

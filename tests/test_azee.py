@@ -65,12 +65,24 @@ def _block(score: dict, path: str) -> dict:
 
 def test_worked_example_a_info_about():
     s = compile_text(":info-about(:cinema, :bien)")
-    _assert_times(s, {
-        "INFO_ABOUT": ("sync", 0, 2.4), "INFO_ABOUT.TOPIC": ("sync", 0, 0.9),
-        "INFO_ABOUT.TOPIC_HOLD": ("hold", 0.9, 1.2), "INFO_ABOUT.BROWS": ("cstr", 0, 1.2),
-        "INFO_ABOUT.INFO": ("sync", 1.2, 2.4), "INFO_ABOUT.BLINK": ("cstr", 2.0, 2.2)})  # fmt: skip
+    _assert_times(
+        s,
+        {
+            "INFO_ABOUT": ("sync", 0, 2.4),
+            "INFO_ABOUT.TOPIC": ("sync", 0, 0.9),
+            "INFO_ABOUT.TOPIC_HOLD": ("hold", 0.9, 1.2),
+            "INFO_ABOUT.BROWS": ("cstr", 0, 1.2),
+            "INFO_ABOUT.INFO": ("sync", 1.2, 2.4),
+            "INFO_ABOUT.BLINK": ("cstr", 2.0, 2.2),
+        },
+    )
     assert [c["name"] for c in s["root"]["children"]] == [
-        "TOPIC", "TOPIC_HOLD", "BROWS", "INFO", "BLINK"]  # fmt: skip
+        "TOPIC",
+        "TOPIC_HOLD",
+        "BROWS",
+        "INFO",
+        "BLINK",
+    ]
     assert _block(s, "INFO_ABOUT.TOPIC_HOLD")["of"] == "TOPIC"
     assert _no_x(s) == _no_x(_example("info-about"))
 
@@ -78,12 +90,15 @@ def test_worked_example_a_info_about():
 def test_worked_example_b_nicht_sondern():
     s = compile_text(":nicht-sondern('nicht :arbre, 'sondern :armoire)")
     n = "NICHT_SONDERN"
-    expected = {n: ("sync", 0, 3.3), f"{n}.NEGATED": ("sync", 0, 2.0),
-                f"{n}.NEGATED.NICHT": ("sync", 0, 1.2),
-                f"{n}.NEGATED.NICHT_HOLD": ("hold", 1.2, 2.0),
-                f"{n}.NEGATED.HEADSHAKE": ("sync", 1.2, 2.0),
-                f"{n}.NEGATED.HEADSHAKE.GAZE": ("cstr", 0, 0.8),
-                f"{n}.SONDERN": ("sync", 2.0, 3.3)}  # fmt: skip
+    expected = {
+        n: ("sync", 0, 3.3),
+        f"{n}.NEGATED": ("sync", 0, 2.0),
+        f"{n}.NEGATED.NICHT": ("sync", 0, 1.2),
+        f"{n}.NEGATED.NICHT_HOLD": ("hold", 1.2, 2.0),
+        f"{n}.NEGATED.HEADSHAKE": ("sync", 1.2, 2.0),
+        f"{n}.NEGATED.HEADSHAKE.GAZE": ("cstr", 0, 0.8),
+        f"{n}.SONDERN": ("sync", 2.0, 3.3),
+    }
     for k in range(4):
         expected[f"{n}.NEGATED.HEADSHAKE.TURN_{k}"] = ("cstr", 0.2 * k, 0.2 * k + 0.08)
     _assert_times(s, expected)
@@ -99,28 +114,48 @@ def test_worked_example_b_nicht_sondern():
 def test_worked_example_c_side_by_side():
     s = compile_text(":side-by-side('left :cinema, 'right :arbre)")
     r = "SIDE_BY_SIDE"
-    _assert_times(s, {
-        r: ("sync", 0, 2.85), f"{r}.LEFT": ("sync", 0, 0.9),
-        f"{r}.LEFT.SIG": ("sync", 0, 0.9), f"{r}.LEFT.GAZE": ("cstr", 0, 0.9),
-        f"{r}.RIGHT": ("sync", 0.9, 2.85), f"{r}.RIGHT.SIG": ("sync", 0, 1.2),
-        f"{r}.RIGHT.POINT": ("sync", 1.2, 1.95)})  # fmt: skip
+    _assert_times(
+        s,
+        {
+            r: ("sync", 0, 2.85),
+            f"{r}.LEFT": ("sync", 0, 0.9),
+            f"{r}.LEFT.SIG": ("sync", 0, 0.9),
+            f"{r}.LEFT.GAZE": ("cstr", 0, 0.9),
+            f"{r}.RIGHT": ("sync", 0.9, 2.85),
+            f"{r}.RIGHT.SIG": ("sync", 0, 1.2),
+            f"{r}.RIGHT.POINT": ("sync", 1.2, 1.95),
+        },
+    )
     assert _block(s, f"{r}.LEFT.GAZE")["constraints"] == [{"type": "look", "at": "^Lssp"}]
     screen = _block(s, f"{r}.LEFT.SIG.SCREEN")["constraints"][0]
     assert screen["at"]["translate"] == "^Lssp"
-    assert compile_text(":ix('loc ^Rssp)")["root"]["children"] == _block(
-        s, f"{r}.RIGHT.POINT")["children"]  # fmt: skip
+    assert (
+        compile_text(":ix('loc ^Rssp)")["root"]["children"]
+        == _block(s, f"{r}.RIGHT.POINT")["children"]
+    )
 
 
 def test_worked_example_about_ref():
     s = compile_text(":about-ref('sig :arbre, 'pt ^Rssp)")
     side = compile_text(":side-by-side('left :cinema, 'right :arbre)")
-    _assert_times(s, {"ABOUT_REF": ("sync", 0, 1.95), "ABOUT_REF.REF": ("sync", 0, 1.95),
-                      "ABOUT_REF.LEAN": ("cstr", 0, 1.95)})  # fmt: skip
-    assert _block(s, "ABOUT_REF.REF")["children"] == _block(side, "SIDE_BY_SIDE.RIGHT")[
-        "children"]  # fmt: skip
+    _assert_times(
+        s,
+        {
+            "ABOUT_REF": ("sync", 0, 1.95),
+            "ABOUT_REF.REF": ("sync", 0, 1.95),
+            "ABOUT_REF.LEAN": ("cstr", 0, 1.95),
+        },
+    )
+    assert _block(s, "ABOUT_REF.REF")["children"] == _block(side, "SIDE_BY_SIDE.RIGHT")["children"]
     assert _block(s, "ABOUT_REF.LEAN")["constraints"] == [
-        {"type": "orient", "bone": "!back_2", "axis": "dir", "rel": "along",
-         "vector": {"add": ["up", {"scale": "right", "by": 0.15}]}}]  # fmt: skip
+        {
+            "type": "orient",
+            "bone": "!back_2",
+            "axis": "dir",
+            "rel": "along",
+            "vector": {"add": ["up", {"scale": "right", "by": 0.15}]},
+        }
+    ]
 
 
 @pytest.mark.parametrize("name", ["info-about", "nicht-sondern"])
@@ -136,8 +171,9 @@ def test_generated_examples_equal_their_expressions(name):
 # ---------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name, side", [("arbre", "R"), ("armoire", "R"), ("bien", "R"),
-                                        ("penser", "L")])  # fmt: skip
+@pytest.mark.parametrize(
+    "name, side", [("arbre", "R"), ("armoire", "R"), ("bien", "R"), ("penser", "L")]
+)
 def test_a_bundled_sign_alone_equals_its_example(name, side):
     assert _no_x(compile_text(f":{name}", strong_side=side)) == _no_x(_example(name))
 
@@ -153,8 +189,10 @@ def test_cinema_is_the_topic_of_info_about_and_ix_points_like_pointing():
     assert [aim, look] == [point["constraints"][1], point["constraints"][3]]
     # but the fingertip 0.1 m past the locus on that line (half way from the chest, the
     # strong hand cannot point at its own side) and the palm as near down as the index allows
-    assert place["at"] == {"translate": "^Rssp", "by": {"scale": {"unit": aim["vector"]},
-                                                        "by": 0.1}}  # fmt: skip
+    assert place["at"] == {
+        "translate": "^Rssp",
+        "by": {"scale": {"unit": aim["vector"]}, "by": 0.1},
+    }
     assert palm["vector"] == {"cross": [aim["vector"], {"cross": ["down", aim["vector"]]}]}
     assert ix["children"][0]["start"] == ix["children"][1]["start"] == 0.35
 
@@ -213,11 +251,18 @@ NESTED = """\
 """
 
 
-@pytest.mark.parametrize("text", [
-    ":info-about(:cinema, :bien)", ":info-about('topic :cinema, 'info :bien)",
-    ":info-about(:cinema, 'info :bien)", LAYOUT, SAME_DEPTH,
-    ":info-about\n  :cinema\n  :bien\n", ":info-about(\n  :cinema,\n    :bien)\n",
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "text",
+    [
+        ":info-about(:cinema, :bien)",
+        ":info-about('topic :cinema, 'info :bien)",
+        ":info-about(:cinema, 'info :bien)",
+        LAYOUT,
+        SAME_DEPTH,
+        ":info-about\n  :cinema\n  :bien\n",
+        ":info-about(\n  :cinema,\n    :bien)\n",
+    ],
+)
 def test_layout_and_inline_forms_agree(text):
     s = compile_text(text)
     assert s == compile_text(":info-about(:cinema, :bien)")
@@ -227,8 +272,10 @@ def test_layout_and_inline_forms_agree(text):
 def test_x_source_round_trips():
     s = compile_text(NESTED)
     src = s["x-source"]
-    assert src == (":info-about('topic :cinema, 'info :nicht-sondern('nicht :bien, "
-                   "'sondern :penser, 'neghold 0.4))")  # fmt: skip
+    assert src == (
+        ":info-about('topic :cinema, 'info :nicht-sondern('nicht :bien, "
+        "'sondern :penser, 'neghold 0.4))"
+    )
     assert compile_text(src) == s
     inline = compile_text(":tens-units(.nb-5, .nb-2, 'gap 0.2)")
     assert inline["x-source"] == ":tens-units('tens .nb-5, 'units .nb-2, 'gap 0.2)"
@@ -253,12 +300,19 @@ def test_unicode_names_parse():
 # ---------------------------------------------------------------------------------------
 
 EVERY_RULE = [
-    ":seq(:bien, :penser, 'gap 0.1)", ":info-about(:cinema, :bien, 'hold 0)",
-    ":side-info(:bien, :arbre)", ":about-ref(:bien, ^Lssp)", ":about-ref(:penser, ^ssp)",
-    ":instance-of(:armoire, :bien)", ":in-context(:arbre, :bien)",
-    ":each-of(:nb-1, :nb-2, :nb-3)", ":side-by-side(:cinema, :arbre)",
-    ":nicht-sondern(:bien, :penser, 'neghold 0.1)", ":tens-units(.nb-5, .nb-2)",
-    ":decidedly(:armoire)", ":info-about(:cinema, :info-about(:bien, :penser))",
+    ":seq(:bien, :penser, 'gap 0.1)",
+    ":info-about(:cinema, :bien, 'hold 0)",
+    ":side-info(:bien, :arbre)",
+    ":about-ref(:bien, ^Lssp)",
+    ":about-ref(:penser, ^ssp)",
+    ":instance-of(:armoire, :bien)",
+    ":in-context(:arbre, :bien)",
+    ":each-of(:nb-1, :nb-2, :nb-3)",
+    ":side-by-side(:cinema, :arbre)",
+    ":nicht-sondern(:bien, :penser, 'neghold 0.1)",
+    ":tens-units(.nb-5, .nb-2)",
+    ":decidedly(:armoire)",
+    ":info-about(:cinema, :info-about(:bien, :penser))",
 ]
 
 
@@ -275,8 +329,12 @@ def test_every_rule_is_exercised_and_documented():
     for r in RULES:
         assert r.source and r.summary and r.approximated
         assert r.name in used or not r.implemented
-    assert compile_text(":info-about(:cinema, :info-about(:bien, :penser))")["root"][
-        "children"][-1]["name"] == "INFO"  # no blink when the info is an info-about
+    assert (
+        compile_text(":info-about(:cinema, :info-about(:bien, :penser))")["root"]["children"][-1][
+            "name"
+        ]
+        == "INFO"
+    )  # no blink when the info is an info-about
 
 
 @pytest.mark.parametrize("name", Lexicon().names())
@@ -292,19 +350,32 @@ def _bench_expression() -> str:
 
 #: Every composition of the contract's worked examples and of docs/azee-text.md, every
 #: rule of EVERY_RULE, the benchmark's expression and each of its items.
-REALIZED = list(dict.fromkeys([
-    ":info-about(:cinema, :bien)", ":nicht-sondern(:arbre, :armoire)",
-    ":side-by-side('left :cinema, 'right :arbre)", ":about-ref('sig :arbre, 'pt ^Rssp)",
-    ":seq(:bien, :ix('loc ^Rssp))", ":instance-of(:armoire, :bien)",
-    ":info-about(:cinema, :tens-units(.nb-5, .nb-2))", ":nicht-sondern(:bien, :penser)",
-    ":about-ref(:cinema, ^Rssp)", ":tens-units(.nb-0, .nb-9)",
-    ":side-by-side('left :cinema, 'right :bien)", ":side-by-side('left :nb-5, 'right :nb-2)",
-    ":ix('loc ^Lssp)", *EVERY_RULE,
-    ":info-about(:arbre, :tens-units(.nb-5, .nb-2))", ":in-context(:cinema, :decidedly(:penser))",
-    ":nicht-sondern(:bien, :each-of(:nb-1, :nb-2))",
-    ":instance-of(:armoire, :side-info(:bien, :arbre))", ":tens-units(.nb-3, .nb-4)",
-    _bench_expression(),
-]))  # fmt: skip
+REALIZED = list(
+    dict.fromkeys(
+        [
+            ":info-about(:cinema, :bien)",
+            ":nicht-sondern(:arbre, :armoire)",
+            ":side-by-side('left :cinema, 'right :arbre)",
+            ":about-ref('sig :arbre, 'pt ^Rssp)",
+            ":seq(:bien, :ix('loc ^Rssp))",
+            ":instance-of(:armoire, :bien)",
+            ":info-about(:cinema, :tens-units(.nb-5, .nb-2))",
+            ":nicht-sondern(:bien, :penser)",
+            ":about-ref(:cinema, ^Rssp)",
+            ":tens-units(.nb-0, .nb-9)",
+            ":side-by-side('left :cinema, 'right :bien)",
+            ":side-by-side('left :nb-5, 'right :nb-2)",
+            ":ix('loc ^Lssp)",
+            *EVERY_RULE,
+            ":info-about(:arbre, :tens-units(.nb-5, .nb-2))",
+            ":in-context(:cinema, :decidedly(:penser))",
+            ":nicht-sondern(:bien, :each-of(:nb-1, :nb-2))",
+            ":instance-of(:armoire, :side-info(:bien, :arbre))",
+            ":tens-units(.nb-3, .nb-4)",
+            _bench_expression(),
+        ]
+    )
+)
 
 
 @pytest.fixture(scope="module")
@@ -316,18 +387,23 @@ def model():
 def test_compiled_scores_realize_within_tolerance(text, model):
     s = compile_text(text)
     r = realize(s, fps=25.0, solver=make_solver())
-    bad = [f"{t.block}#{t.index} {t.kind} {t.worst:.4g} > {t.tol:.4g}" for t in r.traces
-           if not t.ok]  # fmt: skip
+    bad = [
+        f"{t.block}#{t.index} {t.kind} {t.worst:.4g} > {t.tol:.4g}" for t in r.traces if not t.ok
+    ]
     assert not bad, bad
     report = check_poses(model, r.qpos, allowed=contact_pairs(s, r.time))
     assert not report.penetrations, report.penetrations[:3]
 
 
 @pytest.mark.parametrize("side", ["R", "L"])
-@pytest.mark.parametrize("text", [
-    ":info-about(:cinema, :bien, 'hold 0)", ":side-by-side('left :cinema, 'right :bien)",
-    ":side-by-side('left :nb-5, 'right :nb-2)",
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "text",
+    [
+        ":info-about(:cinema, :bien, 'hold 0)",
+        ":side-by-side('left :cinema, 'right :bien)",
+        ":side-by-side('left :nb-5, 'right :nb-2)",
+    ],
+)
 def test_a_hand_shape_or_gaze_change_with_no_gap_stays_under_25_rad_per_s(text, side, model):
     """An open hand held to the end of a sign, then a fist or a V at once (and a gaze from
     one locus to the other): the blend between them is followed, no joint snaps."""
@@ -342,63 +418,154 @@ def test_a_hand_shape_or_gaze_change_with_no_gap_stays_under_25_rad_per_s(text, 
 # ---------------------------------------------------------------------------------------
 
 ERRORS = [
-    (":info-about(:cinema, :bein)", ("<-e>:1:22: :info-about'info:bein: unknown rule or sign "
-     "':bein'; did you mean ':bien'? (azee-mj rules lists all)")),
-    (":info-about('topic :cinema, 'inf :bien)", ("<-e>:1:29: :info-about: unknown argument "
-     "'inf for :info-about; did you mean 'info? It takes 'topic score, 'info score, "
-     "'hold num=0.3")),
-    (":info-about('topic :cinema, 'topic :bien)", ("<-e>:1:29: :info-about: repeated argument "
-     "'topic for :info-about; it takes 'topic score, 'info score, 'hold num=0.3")),
-    (":info-about(:cinema)", ("<-e>:1:1: :info-about: missing argument 'info for :info-about; "
-     "it takes 'topic score, 'info score, 'hold num=0.3")),
-    (":info-about(:cinema, :bien, 3, 4)", ("<-e>:1:32: :info-about: too many arguments for "
-     ":info-about (4 given); it takes 'topic score, 'info score, 'hold num=0.3")),
-    (":info-about('topic :cinema, :bien)", ("<-e>:1:29: :info-about: a positional argument "
-     "after a labelled one; positional arguments come first, in parameter order")),
-    (":about-ref('sig :arbre, 'pt :arbre)", ("<-e>:1:29: :about-ref: 'pt: expected a locus "
-     "(^ssp, ^Rssp, ^Lssp), got score :arbre")),
-    (":about-ref(:arbre, ^Xssp)", ("<-e>:1:20: :about-ref'pt: unknown locus '^Xssp'; did you "
-     "mean '^ssp'? Valid loci are ^ssp, ^Rssp, ^Lssp")),
-    (":info-about(:cinema, :tens-units('tens :bien, 'units .nb-2))", ("<-e>:1:40: "
-     ":info-about'info:tens-units: 'tens: expected a digit (.nb-0 to .nb-9), got score :bien")),
-    (":tens-units(.nb-5, .nb-12)", ("<-e>:1:20: :tens-units'units: unknown atom '.nb-12'; "
-     "atoms are .nb-0 to .nb-9")),
-    (":nicht-sondern(:arbre, :bien, 'neghold 0)", ("<-e>:1:40: :nicht-sondern: 'neghold: "
-     "expected a number > 0, got 0")),
+    (
+        ":info-about(:cinema, :bein)",
+        (
+            "<-e>:1:22: :info-about'info:bein: unknown rule or sign "
+            "':bein'; did you mean ':bien'? (azee-mj rules lists all)"
+        ),
+    ),
+    (
+        ":info-about('topic :cinema, 'inf :bien)",
+        (
+            "<-e>:1:29: :info-about: unknown argument "
+            "'inf for :info-about; did you mean 'info? It takes 'topic score, 'info score, "
+            "'hold num=0.3"
+        ),
+    ),
+    (
+        ":info-about('topic :cinema, 'topic :bien)",
+        (
+            "<-e>:1:29: :info-about: repeated argument "
+            "'topic for :info-about; it takes 'topic score, 'info score, 'hold num=0.3"
+        ),
+    ),
+    (
+        ":info-about(:cinema)",
+        (
+            "<-e>:1:1: :info-about: missing argument 'info for :info-about; "
+            "it takes 'topic score, 'info score, 'hold num=0.3"
+        ),
+    ),
+    (
+        ":info-about(:cinema, :bien, 3, 4)",
+        (
+            "<-e>:1:32: :info-about: too many arguments for "
+            ":info-about (4 given); it takes 'topic score, 'info score, 'hold num=0.3"
+        ),
+    ),
+    (
+        ":info-about('topic :cinema, :bien)",
+        (
+            "<-e>:1:29: :info-about: a positional argument "
+            "after a labelled one; positional arguments come first, in parameter order"
+        ),
+    ),
+    (
+        ":about-ref('sig :arbre, 'pt :arbre)",
+        ("<-e>:1:29: :about-ref: 'pt: expected a locus (^ssp, ^Rssp, ^Lssp), got score :arbre"),
+    ),
+    (
+        ":about-ref(:arbre, ^Xssp)",
+        (
+            "<-e>:1:20: :about-ref'pt: unknown locus '^Xssp'; did you "
+            "mean '^ssp'? Valid loci are ^ssp, ^Rssp, ^Lssp"
+        ),
+    ),
+    (
+        ":info-about(:cinema, :tens-units('tens :bien, 'units .nb-2))",
+        (
+            "<-e>:1:40: "
+            ":info-about'info:tens-units: 'tens: expected a digit (.nb-0 to .nb-9), got score :bien"
+        ),
+    ),
+    (
+        ":tens-units(.nb-5, .nb-12)",
+        ("<-e>:1:20: :tens-units'units: unknown atom '.nb-12'; atoms are .nb-0 to .nb-9"),
+    ),
+    (
+        ":nicht-sondern(:arbre, :bien, 'neghold 0)",
+        ("<-e>:1:40: :nicht-sondern: 'neghold: expected a number > 0, got 0"),
+    ),
     (":seq(:bien, 'gap -1)", "<-e>:1:18: :seq: 'gap: expected a number >= 0, got -1"),
-    (":each-of(:bien)", ("<-e>:1:10: :each-of: 'item: expected at least 2 items, got 1; it "
-     "takes 'item score 2+")),
-    (":bien('loc 3)", ("<-e>:1:12: :bien: 'loc: expected a locus (^ssp, ^Rssp, ^Lssp), got "
-     "num 3")),
-    (":fingerspelling(:arbre)", ("<-e>:1:1: :fingerspelling: not implemented: azee_mj has no "
-     "manual alphabet; write the word with signs of the lexicon")),
-    (":azop(:arbre)", ("<-e>:1:1: :azop: low-level operators (:azop) are not supported; write "
-     "a rule or a sign (azee-mj rules lists all)")),
-    ("^ssp", ("<-e>:1:1: ^ssp: the expression is a locus, not a score; a file holds one :rule "
-     "or :sign application")),
+    (
+        ":each-of(:bien)",
+        ("<-e>:1:10: :each-of: 'item: expected at least 2 items, got 1; it takes 'item score 2+"),
+    ),
+    (":bien('loc 3)", ("<-e>:1:12: :bien: 'loc: expected a locus (^ssp, ^Rssp, ^Lssp), got num 3")),
+    (
+        ":fingerspelling(:arbre)",
+        (
+            "<-e>:1:1: :fingerspelling: not implemented: azee_mj has no "
+            "manual alphabet; write the word with signs of the lexicon"
+        ),
+    ),
+    (
+        ":azop(:arbre)",
+        (
+            "<-e>:1:1: :azop: low-level operators (:azop) are not supported; write "
+            "a rule or a sign (azee-mj rules lists all)"
+        ),
+    ),
+    (
+        "^ssp",
+        (
+            "<-e>:1:1: ^ssp: the expression is a locus, not a score; a file holds one :rule "
+            "or :sign application"
+        ),
+    ),
     ("?x", "<-e>:1:1: syntax: templates (?x) are not supported; write the value"),
     ("\t:bien", "<-e>:1:1: syntax: tab character; indent and separate with spaces"),
     (":seq(:bien,", "<-e>:1:5: syntax: unbalanced parentheses: '(' is never closed"),
     (":bien)", "<-e>:1:6: syntax: unbalanced parentheses: ')' without '('"),
-    (":bien :arbre", ("<-e>:1:7: syntax: a second expression on one line; put each argument "
-     "on its own line or inside parentheses")),
-    (":bien\n:arbre", ("<-e>:2:1: syntax: a second expression; a file holds one expression "
-     "(arguments are indented deeper than their application)")),
-    (":info-about\n  'topic\n", ("<-e>:2:3: syntax: label 'topic without a value; put it on "
-     "the next line, at least as deep as the label")),
-    (":info-about\n  'topic :cinema\n 'info :bien", ("<-e>:3:2: syntax: bad indent: this "
-     "argument starts at column 2, the one before at column 3")),
-    (":seq(:bien)\n  :arbre", ("<-e>:2:3: syntax: arguments of :seq go in parentheses or in "
-     "layout, never both")),
-    ("^ssp\n  :arbre", ("<-e>:2:3: syntax: a locus takes no arguments; this line is indented "
-     "deeper than it")),
+    (
+        ":bien :arbre",
+        (
+            "<-e>:1:7: syntax: a second expression on one line; put each argument "
+            "on its own line or inside parentheses"
+        ),
+    ),
+    (
+        ":bien\n:arbre",
+        (
+            "<-e>:2:1: syntax: a second expression; a file holds one expression "
+            "(arguments are indented deeper than their application)"
+        ),
+    ),
+    (
+        ":info-about\n  'topic\n",
+        (
+            "<-e>:2:3: syntax: label 'topic without a value; put it on "
+            "the next line, at least as deep as the label"
+        ),
+    ),
+    (
+        ":info-about\n  'topic :cinema\n 'info :bien",
+        (
+            "<-e>:3:2: syntax: bad indent: this "
+            "argument starts at column 2, the one before at column 3"
+        ),
+    ),
+    (
+        ":seq(:bien)\n  :arbre",
+        ("<-e>:2:3: syntax: arguments of :seq go in parentheses or in layout, never both"),
+    ),
+    (
+        "^ssp\n  :arbre",
+        ("<-e>:2:3: syntax: a locus takes no arguments; this line is indented deeper than it"),
+    ),
     ("", "<-e>:1:1: syntax: no expression; a file holds one expression"),
     (":seq(:bien, )", "<-e>:1:13: syntax: expected an expression, got ')'"),
     (":seq(:bien :arbre)", "<-e>:1:12: syntax: expected ',' or ')', got an application"),
     (":seq('item)", "<-e>:1:6: syntax: label 'item without a value"),
-    (":seq(:bien, $x)", ("<-e>:1:13: syntax: unexpected character '$'; an expression starts "
-     "with :name, ^locus, .atom, 'label or a number")),
-]  # fmt: skip
+    (
+        ":seq(:bien, $x)",
+        (
+            "<-e>:1:13: syntax: unexpected character '$'; an expression starts "
+            "with :name, ^locus, .atom, 'label or a number"
+        ),
+    ),
+]
 
 
 @pytest.mark.parametrize("text, message", ERRORS)
@@ -419,15 +586,19 @@ def test_error_records_where(tmp_path):
 
 
 def test_person_aged_52_parses_then_fails_on_personne(tmp_path):
-    text = ("# 'person aged 52' (Sharma's thesis)\n:info-about\n  'topic\n    :personne\n"
-            "  'info\n    :tens-units\n      'tens .nb-5\n      'units .nb-2\n")  # fmt: skip
+    text = (
+        "# 'person aged 52' (Sharma's thesis)\n:info-about\n  'topic\n    :personne\n"
+        "  'info\n    :tens-units\n      'tens .nb-5\n      'units .nb-2\n"
+    )
     path = tmp_path / "age.azee"
     path.write_text(text)
     assert parse(text).name == "info-about"
     with pytest.raises(ExpressionError) as e:
         compile_file(path)
-    assert str(e.value) == (f"{path}:4:5: :info-about'topic:personne: unknown rule or sign "
-                            "':personne' (azee-mj rules lists all)")  # fmt: skip
+    assert str(e.value) == (
+        f"{path}:4:5: :info-about'topic:personne: unknown rule or sign "
+        "':personne' (azee-mj rules lists all)"
+    )
 
 
 def test_lexicon_errors(tmp_path):
@@ -441,26 +612,33 @@ def test_lexicon_errors(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps(bad))
     with pytest.raises(ExpressionError) as e:
         compile_text(":bad", lexicon=[tmp_path])
-    assert str(e.value) == ("<text>:1:1: :bad: lexicon :bad: BAD.K1: constraint 1 (place): "
-                            "unknown site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj "
-                            "sites lists all)")  # fmt: skip
+    assert str(e.value) == (
+        "<text>:1:1: :bad: lexicon :bad: BAD.K1: constraint 1 (place): "
+        "unknown site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj "
+        "sites lists all)"
+    )
     (tmp_path / "seq.json").write_text(json.dumps(_example("bien")))
     with pytest.raises(ExpressionError) as e:
         Lexicon([tmp_path])
-    assert str(e.value) == (f"{tmp_path / 'seq.json'}: a sign may not be named like the rule "
-                            ":seq; rename the file")  # fmt: skip
+    assert str(e.value) == (
+        f"{tmp_path / 'seq.json'}: a sign may not be named like the rule :seq; rename the file"
+    )
 
 
 def test_file_errors(tmp_path, capsys):
     missing = tmp_path / "nope.azee"
     assert main(["compile", str(missing)]) == 2
-    assert capsys.readouterr().err == (f"azee-mj: error: {missing}: cannot read the "
-                                       "expression: No such file or directory\n")  # fmt: skip
+    assert capsys.readouterr().err == (
+        f"azee-mj: error: {missing}: cannot read the expression: No such file or directory\n"
+    )
     assert main(["compile", "-e", ":bien", "--lexicon", str(missing)]) == 2
-    assert capsys.readouterr().err == (f"azee-mj: error: {missing}: not a directory of signs "
-                                       "(--lexicon)\n")  # fmt: skip
+    assert capsys.readouterr().err == (
+        f"azee-mj: error: {missing}: not a directory of signs (--lexicon)\n"
+    )
     assert main(["compile"]) == 2
-    assert capsys.readouterr().err == "azee-mj: error: compile: give one EXPR.azee file or -e TEXT\n"
+    assert (
+        capsys.readouterr().err == "azee-mj: error: compile: give one EXPR.azee file or -e TEXT\n"
+    )
 
 
 def test_deep_nesting_is_an_error():
@@ -496,11 +674,13 @@ def test_cli_rules_json(capsys):
     signs = {s["name"]: s for s in out["signs"]}
     assert {"arbre", "armoire", "bien", "penser", "cinema", "ix"} <= set(signs)
     assert {f"nb-{n}" for n in range(10)} <= set(signs)
-    assert signs["ix"]["params"] == [{"name": "loc", "kind": "locus", "default": "^ssp",
-                                      "list": False}]  # fmt: skip
+    assert signs["ix"]["params"] == [
+        {"name": "loc", "kind": "locus", "default": "^ssp", "list": False}
+    ]
     assert main(["rules"]) == 0
     assert ":nicht-sondern('nicht score, 'sondern score, 'neghold num=0.8) (alias :not-but)" in (
-        capsys.readouterr().out)  # fmt: skip
+        capsys.readouterr().out
+    )
 
 
 def test_cli_realize_and_check_take_azee(tmp_path, capsys):
@@ -539,8 +719,28 @@ def test_handshapes_are_catalogue_morphs(capsys):
     assert main(["sites", "--json"]) == 0
     morphs = json.loads(capsys.readouterr().out)["morphs"]
     assert {f"hs_{n}" for n in HANDSHAPES} <= set(morphs)
-    for n in ("flat", "bent", "a", "s", "index", "v", "w", "4", "5", "claw", "l", "y", "c",
-              "o", "f", "pinch", "thumb", "i", "horns", "flat_o"):  # fmt: skip
+    for n in (
+        "flat",
+        "bent",
+        "a",
+        "s",
+        "index",
+        "v",
+        "w",
+        "4",
+        "5",
+        "claw",
+        "l",
+        "y",
+        "c",
+        "o",
+        "f",
+        "pinch",
+        "thumb",
+        "i",
+        "horns",
+        "flat_o",
+    ):
         assert n in HANDSHAPES
 
 
@@ -568,11 +768,13 @@ def test_a_handshape_and_another_morph_add():
     s = copy.deepcopy(_example("bien"))
     s["root"]["children"][0]["constraints"] = [
         {"type": "morph", "id": "hs_flat", "weight": 1.0, "side": "s"},
-        {"type": "morph", "id": "index_bend", "weight": 0.5, "side": "s"}]  # fmt: skip
+        {"type": "morph", "id": "index_bend", "weight": 0.5, "side": "s"},
+    ]
     r = realize(s, fps=10.0)
     model = load_model()
-    q = r.qpos[-1][model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT,
-                                                         "index_R_1_flex")]]  # fmt: skip
+    q = r.qpos[-1][
+        model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "index_R_1_flex")]
+    ]
     assert q == pytest.approx(0.5 * 1.45, abs=0.02)
 
 
@@ -590,8 +792,23 @@ def test_cli_render_and_report_take_azee(tmp_path, capsys):
     except AzeeError as e:
         pytest.skip(f"no OpenGL backend, nothing can be rendered: {e}")
     png = tmp_path / "five.png"
-    assert main(["render", str(src), "-o", str(png), "--time", "0.5", "--size", "160x120",
-                 "--fps", "10"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "render",
+                str(src),
+                "-o",
+                str(png),
+                "--time",
+                "0.5",
+                "--size",
+                "160x120",
+                "--fps",
+                "10",
+            ]
+        )
+        == 0
+    )
     assert png.stat().st_size > 0
 
 
@@ -599,12 +816,26 @@ def test_the_front_end_imports_nothing_from_solving():
     import subprocess
     import sys
 
-    code = ("import sys, azee_mj.azee; azee_mj.azee.compile_text(':bien'); "
-            "print(' '.join(sorted(m for m in sys.modules if m.startswith('azee_mj'))))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, cwd=ROOT).stdout.split()  # fmt: skip
-    solving_and_after = {"azee_mj.kinematics", "azee_mj.constraints", "azee_mj.ik",
-                         "azee_mj.schedule", "azee_mj.motion", "azee_mj.timeline",
-                         "azee_mj.rollout_io", "azee_mj.markers", "azee_mj.render",
-                         "azee_mj.viewer", "azee_mj.check", "azee_mj.report", "azee_mj.cli"}
+    code = (
+        "import sys, azee_mj.azee; azee_mj.azee.compile_text(':bien'); "
+        "print(' '.join(sorted(m for m in sys.modules if m.startswith('azee_mj'))))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    ).stdout.split()
+    solving_and_after = {
+        "azee_mj.kinematics",
+        "azee_mj.constraints",
+        "azee_mj.ik",
+        "azee_mj.schedule",
+        "azee_mj.motion",
+        "azee_mj.timeline",
+        "azee_mj.rollout_io",
+        "azee_mj.markers",
+        "azee_mj.render",
+        "azee_mj.viewer",
+        "azee_mj.check",
+        "azee_mj.report",
+        "azee_mj.cli",
+    }
     assert not solving_and_after & set(out), out

@@ -46,8 +46,21 @@ def test_sites_text_lists_the_catalogue(capsys):
 
 def test_realize_writes_a_rollout_and_a_report(tmp_path, capsys):
     out, rep = tmp_path / "good.npz", tmp_path / "good.json"
-    assert main(["realize", str(DATA / "good.json"), "-o", str(out), "--fps", "25",
-                 "--report", str(rep)]) == 0
+    assert (
+        main(
+            [
+                "realize",
+                str(DATA / "good.json"),
+                "-o",
+                str(out),
+                "--fps",
+                "25",
+                "--report",
+                str(rep),
+            ]
+        )
+        == 0
+    )
     assert "3/3 constraints within tolerance" in capsys.readouterr().out
     with np.load(out, allow_pickle=False) as z:
         assert z["qpos"].shape == (31, 83)
@@ -73,15 +86,29 @@ def test_bad_score_exits_2_with_one_message_and_no_file(tmp_path, capsys):
     out = tmp_path / "out.npz"
     assert main(["realize", str(_bad_score(tmp_path)), "-o", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err == ("azee-mj: error: GOOD.K1: constraint 1 (place): unknown site '@T_TPI(s)'; "
-                   "did you mean '@T_TIP(s)'? (azee-mj sites lists all)\n")
+    assert err == (
+        "azee-mj: error: GOOD.K1: constraint 1 (place): unknown site '@T_TPI(s)'; "
+        "did you mean '@T_TIP(s)'? (azee-mj sites lists all)\n"
+    )
     assert not out.exists()
     assert list(tmp_path.iterdir()) == [tmp_path / "bad.json"]
 
 
 def test_console_script_prints_no_traceback(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "azee_mj.cli", "realize", str(_bad_score(tmp_path)),
-                           "-o", str(tmp_path / "o.npz")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "azee_mj.cli",
+            "realize",
+            str(_bad_score(tmp_path)),
+            "-o",
+            str(tmp_path / "o.npz"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.count("\n") == 1
@@ -110,8 +137,12 @@ def test_check_exit_codes(tmp_path, capsys):
 
 
 def test_realize_rejects_a_bad_fps(tmp_path, capsys):
-    assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"), "--fps", "0"]) == 2
-    assert capsys.readouterr().err == "azee-mj: error: --fps must be a number from 1 to 1000, got 0\n"
+    assert (
+        main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"), "--fps", "0"]) == 2
+    )
+    assert (
+        capsys.readouterr().err == "azee-mj: error: --fps must be a number from 1 to 1000, got 0\n"
+    )
 
 
 def _same_rollout(a, b):
@@ -132,8 +163,23 @@ def test_realize_many_scores_in_parallel_matches_each_alone(tmp_path, capsys):
     for s in scores:
         assert main(["realize", str(s), "-o", str(alone / f"{s.stem}.npz"), "--fps", "25"]) == 0
     capsys.readouterr()
-    assert main(["realize", *map(str, scores), "-o", f"{out}/", "--fps", "25",
-                 "--jobs", "2", "--report", str(reports)]) == 0
+    assert (
+        main(
+            [
+                "realize",
+                *map(str, scores),
+                "-o",
+                f"{out}/",
+                "--fps",
+                "25",
+                "--jobs",
+                "2",
+                "--report",
+                str(reports),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
     for s in scores:
@@ -147,12 +193,29 @@ def test_realize_many_scores_in_parallel_matches_each_alone(tmp_path, capsys):
 def test_realize_many_reports_each_bad_score_and_finishes_the_others(tmp_path, capsys):
     bad = _bad_score(tmp_path)
     (out,) = _dirs(tmp_path, "out")
-    assert main(["realize", str(DATA / "good.json"), str(bad), str(DATA / "kinds.json"),
-                 "-o", str(out), "--fps", "25", "--jobs", "2"]) == 2
+    assert (
+        main(
+            [
+                "realize",
+                str(DATA / "good.json"),
+                str(bad),
+                str(DATA / "kinds.json"),
+                "-o",
+                str(out),
+                "--fps",
+                "25",
+                "--jobs",
+                "2",
+            ]
+        )
+        == 2
+    )
     captured = capsys.readouterr()
-    assert captured.err == (f"azee-mj: error: {bad}: GOOD.K1: constraint 1 (place): unknown "
-                            "site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj sites lists "
-                            "all)\n")
+    assert captured.err == (
+        f"azee-mj: error: {bad}: GOOD.K1: constraint 1 (place): unknown "
+        "site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj sites lists "
+        "all)\n"
+    )
     assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
     assert captured.out.count("constraints within tolerance") == 2
 
@@ -171,8 +234,9 @@ def test_realize_a_directory_of_scores_and_expressions(tmp_path, capsys):
         _same_rollout(single, out / f"{stem}.npz")
     capsys.readouterr()
     assert main(["realize", str(empty), "-o", str(out)]) == 2
-    assert capsys.readouterr().err == (f"azee-mj: error: {empty}: no *.json or *.azee scores "
-                                       "in this directory\n")
+    assert capsys.readouterr().err == (
+        f"azee-mj: error: {empty}: no *.json or *.azee scores in this directory\n"
+    )
 
 
 def test_realize_many_compiles_expressions_with_the_lexicon(tmp_path, capsys):
@@ -181,23 +245,65 @@ def test_realize_many_compiles_expressions_with_the_lexicon(tmp_path, capsys):
     src = tmp_path / "x.azee"
     src.write_text(":hello\n")
     single = tmp_path / "x.npz"
-    assert main(["realize", str(src), "-o", str(single), "--fps", "10", "--lexicon",
-                 str(lex)]) == 0
-    assert main(["realize", str(src), str(DATA / "good.json"), "-o", str(out), "--fps", "10",
-                 "--lexicon", str(lex), "--jobs", "2"]) == 0
+    assert main(["realize", str(src), "-o", str(single), "--fps", "10", "--lexicon", str(lex)]) == 0
+    assert (
+        main(
+            [
+                "realize",
+                str(src),
+                str(DATA / "good.json"),
+                "-o",
+                str(out),
+                "--fps",
+                "10",
+                "--lexicon",
+                str(lex),
+                "--jobs",
+                "2",
+            ]
+        )
+        == 0
+    )
     _same_rollout(single, out / "x.npz")
     capsys.readouterr()
     # Without the lexicon the sign is unknown: that expression fails, naming its file.
-    assert main(["realize", str(src), str(DATA / "good.json"), "-o", str(out), "--fps",
-                 "10", "--jobs", "1"]) == 2
+    assert (
+        main(
+            [
+                "realize",
+                str(src),
+                str(DATA / "good.json"),
+                "-o",
+                str(out),
+                "--fps",
+                "10",
+                "--jobs",
+                "1",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.startswith(f"azee-mj: error: {src}:1:1: ") and "hello" in err
     assert err.count("\n") == 1
     missing = tmp_path / "nope"
-    assert main(["realize", str(src), str(DATA / "good.json"), "-o", str(out),
-                 "--lexicon", str(missing)]) == 2
-    assert capsys.readouterr().err == (f"azee-mj: error: {missing}: not a directory of signs "
-                                       "(--lexicon)\n")
+    assert (
+        main(
+            [
+                "realize",
+                str(src),
+                str(DATA / "good.json"),
+                "-o",
+                str(out),
+                "--lexicon",
+                str(missing),
+            ]
+        )
+        == 2
+    )
+    assert capsys.readouterr().err == (
+        f"azee-mj: error: {missing}: not a directory of signs (--lexicon)\n"
+    )
 
 
 def test_realize_many_rejects_clashing_names_and_bad_jobs(tmp_path, capsys):
@@ -205,10 +311,14 @@ def test_realize_many_rejects_clashing_names_and_bad_jobs(tmp_path, capsys):
     other.write_text((DATA / "good.json").read_text())
     (out,) = _dirs(tmp_path, "o")
     assert main(["realize", str(DATA / "good.json"), str(other), "-o", str(out)]) == 2
-    assert capsys.readouterr().err == (f"azee-mj: error: {DATA / 'good.json'} and {other} would "
-                                       f"both write {out / 'good.npz'}; rename one\n")
-    assert main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"),
-                 "--jobs", "0"]) == 2
+    assert capsys.readouterr().err == (
+        f"azee-mj: error: {DATA / 'good.json'} and {other} would "
+        f"both write {out / 'good.npz'}; rename one\n"
+    )
+    assert (
+        main(["realize", str(DATA / "good.json"), "-o", str(tmp_path / "o.npz"), "--jobs", "0"])
+        == 2
+    )
     assert capsys.readouterr().err == "azee-mj: error: --jobs must be at least 1, got 0\n"
     assert list(out.iterdir()) == []
 
@@ -226,19 +336,24 @@ def test_realize_many_follows_the_output_rule_before_any_work(tmp_path, capsys):
         ([*scores, "-o", str(missing)], f"{missing}: the directory does not exist"),
         ([*scores, "-o", str(f)], f"{f}: exists and is not a directory"),
         ([*scores, "-o", f"{f}/"], f"{f}/: exists and is not a directory"),
-        ([*scores, "-o", str(out), "--report", f"{missing}/"],
-         f"{missing}/: the directory does not exist"),
+        (
+            [*scores, "-o", str(out), "--report", f"{missing}/"],
+            f"{missing}/: the directory does not exist",
+        ),
         # a report would replace the input src/good.json
-        ([src, "-o", str(out), "--report", str(src)],
-         f"{src / 'good.json'}: is also an input ({src / 'good.json'}); write to another file"),
+        (
+            [src, "-o", str(out), "--report", str(src)],
+            f"{src / 'good.json'}: is also an input ({src / 'good.json'}); write to another file",
+        ),
     ]
     for argv, message in cases:
         assert main(["realize", *map(str, argv)]) == 2, message
         assert capsys.readouterr().err == f"azee-mj: error: {message}\n"
     (out / "kinds.npz").mkdir()
     assert main(["realize", *scores, "-o", str(out)]) == 2
-    assert capsys.readouterr().err == (f"azee-mj: error: {out / 'kinds.npz'}: is a directory; "
-                                       "give a file name\n")
+    assert capsys.readouterr().err == (
+        f"azee-mj: error: {out / 'kinds.npz'}: is a directory; give a file name\n"
+    )
     assert [p.name for p in out.iterdir()] == ["kinds.npz"]
     assert (src / "good.json").read_text() == (DATA / "good.json").read_text()
 
@@ -252,9 +367,27 @@ def test_realize_one_score_to_a_directory(tmp_path, capsys):
 
 def test_realize_many_strict_exits_1_on_a_miss_and_2_on_a_bad_score(tmp_path, capsys):
     far = tmp_path / "far.json"  # a wrist target 1.2 m in front of the signing space
-    far.write_text(json.dumps({"format": "azee-score", "version": 1, "root": {
-        "name": "FAR", "kind": "cstr", "start": 0, "end": 0.5, "constraints": [
-            {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [1.2, 0, 0]}}]}}))
+    far.write_text(
+        json.dumps(
+            {
+                "format": "azee-score",
+                "version": 1,
+                "root": {
+                    "name": "FAR",
+                    "kind": "cstr",
+                    "start": 0,
+                    "end": 0.5,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@WR(s)",
+                            "at": {"translate": "^ssp", "by": [1.2, 0, 0]},
+                        }
+                    ],
+                },
+            }
+        )
+    )
     (out,) = _dirs(tmp_path, "out")
     both = [str(far), str(DATA / "good.json"), "-o", str(out), "--fps", "10", "--jobs", "1"]
     assert main(["realize", *both]) == 0

@@ -77,11 +77,14 @@ def _accessor(g, i: int) -> np.ndarray:
 
     acc = g.accessors[i]
     view = g.bufferViews[acc.bufferView]
-    blob = g.binary_blob() if g.buffers[0].uri is None else g.get_data_from_buffer_uri(
-        g.buffers[0].uri)  # fmt: skip
+    blob = (
+        g.binary_blob()
+        if g.buffers[0].uri is None
+        else g.get_data_from_buffer_uri(g.buffers[0].uri)
+    )
     dtype = {gl.FLOAT: np.float32, gl.UNSIGNED_INT: np.uint32}[acc.componentType]
     width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc.type]
-    raw = blob[view.byteOffset + (acc.byteOffset or 0):][: acc.count * width * 4]
+    raw = blob[view.byteOffset + (acc.byteOffset or 0) :][: acc.count * width * 4]
     return np.frombuffer(raw, dtype).reshape(acc.count, width).squeeze()
 
 
@@ -94,8 +97,13 @@ def _quat_mat(xyzw) -> np.ndarray:
 
 def _world_transforms(g, k: int) -> dict[int, np.ndarray]:
     """4x4 world matrix of every node at animation frame ``k`` (the sampled keyframe)."""
-    trs = {i: [np.array(n.translation or [0, 0, 0], float),
-               np.array(n.rotation or [0, 0, 0, 1], float)] for i, n in enumerate(g.nodes)}
+    trs = {
+        i: [
+            np.array(n.translation or [0, 0, 0], float),
+            np.array(n.rotation or [0, 0, 0, 1], float),
+        ]
+        for i, n in enumerate(g.nodes)
+    }
     for a in g.animations:
         for ch in a.channels:
             out = _accessor(g, a.samplers[ch.sampler].output)
@@ -146,10 +154,16 @@ def test_gltf_channels_rotate_hinged_bodies_and_translate_sliding_ones(model, re
     g = pygltflib.GLTF2().load(str(export(realized, tmp_path / "m.glb")))
     names = mo.body_names(model)
     got = {(names[c.target.node], c.target.path) for c in g.animations[0].channels}
-    hinge = {names[model.jnt_bodyid[j]] for j in range(model.njnt)
-             if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE}  # fmt: skip
-    slide = {names[model.jnt_bodyid[j]] for j in range(model.njnt)
-             if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE}  # fmt: skip
+    hinge = {
+        names[model.jnt_bodyid[j]]
+        for j in range(model.njnt)
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    }
+    slide = {
+        names[model.jnt_bodyid[j]]
+        for j in range(model.njnt)
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE
+    }
     assert got == {(b, "rotation") for b in hinge} | {(b, "translation") for b in slide}
     assert {"brow_L", "brow_R", "mouth_L", "mouth_R"} == slide
     assert all(s.interpolation == "LINEAR" for s in g.animations[0].samplers)
@@ -163,8 +177,11 @@ def test_gltf_meshes_are_the_visual_geoms_on_their_surfaces_with_their_colours(m
     T = mujoco.mjtGeom
     checked = set()
     for b, node in enumerate(g.nodes):
-        geoms = [i for i in range(model.body_geomadr[b], model.body_geomadr[b] +
-                 model.body_geomnum[b]) if model.geom_group[i] == 2]  # fmt: skip
+        geoms = [
+            i
+            for i in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b])
+            if model.geom_group[i] == 2
+        ]
         if node.mesh is None:
             assert not geoms, names[b]
             continue
@@ -194,12 +211,22 @@ def test_gltf_meshes_are_the_visual_geoms_on_their_surfaces_with_their_colours(m
             checked.add(t)
             mat = g.materials[prim.material]
             rgba = model.mat_rgba[model.geom_matid[geom]]
-            assert mat.name == mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MATERIAL,
-                                                 model.geom_matid[geom])  # fmt: skip
-            np.testing.assert_allclose(mat.pbrMetallicRoughness.baseColorFactor,
-                                       srgb_to_linear(rgba), atol=1e-7)  # fmt: skip
-    assert checked == {int(x) for x in (T.mjGEOM_SPHERE, T.mjGEOM_ELLIPSOID, T.mjGEOM_CAPSULE,
-                                        T.mjGEOM_CYLINDER, T.mjGEOM_BOX)}  # fmt: skip
+            assert mat.name == mujoco.mj_id2name(
+                model, mujoco.mjtObj.mjOBJ_MATERIAL, model.geom_matid[geom]
+            )
+            np.testing.assert_allclose(
+                mat.pbrMetallicRoughness.baseColorFactor, srgb_to_linear(rgba), atol=1e-7
+            )
+    assert checked == {
+        int(x)
+        for x in (
+            T.mjGEOM_SPHERE,
+            T.mjGEOM_ELLIPSOID,
+            T.mjGEOM_CAPSULE,
+            T.mjGEOM_CYLINDER,
+            T.mjGEOM_BOX,
+        )
+    }
 
 
 # ---------------------------------------------------------------------------------------
@@ -234,11 +261,18 @@ def test_bvh_joints_are_azee_bones_with_the_model_offsets(model, tmp_path):
     out = export(Motion(model.qpos0[None], 50.0), tmp_path / "m.bvh")
     layout = {j.Name: j for j, _, _ in bvhio.readAsBvh(str(out)).Root.layout()}
     assert set(DEFAULT_MAP.bones) <= set(layout)
-    assert set(layout) - set(DEFAULT_MAP.bones) == {"pelvis", "jaw", "lid_L", "lid_R", "brow_L",
-                                                    "brow_R", "mouth_L", "mouth_R"}
+    assert set(layout) - set(DEFAULT_MAP.bones) == {
+        "pelvis",
+        "jaw",
+        "lid_L",
+        "lid_R",
+        "brow_L",
+        "brow_R",
+        "mouth_L",
+        "mouth_R",
+    }
     palm = layout["palm_R"]
-    np.testing.assert_allclose(np.array(palm.Offset), mo.YUP @ model.body("palm_R").pos,
-                               atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(np.array(palm.Offset), mo.YUP @ model.body("palm_R").pos, atol=1e-9)
     assert [c.Name for c in layout["f_arm_R"].Children] == ["palm_R"]
     assert len(palm.Channels) == 3 and all(c.endswith("rotation") for c in palm.Channels)
     assert layout["pelvis"].Channels[:3] == ["Xposition", "Yposition", "Zposition"]
@@ -294,8 +328,12 @@ def test_pose_header_is_mediapipe_holistic_with_the_signers_own_sides(model, tmp
 
     out = export(Motion(model.qpos0[None], 25.0), tmp_path / "m.pose")
     p = Pose.read(out.read_bytes())
-    assert [c.name for c in p.header.components] == ["POSE_LANDMARKS", "FACE_LANDMARKS",
-                                                     "LEFT_HAND_LANDMARKS", "RIGHT_HAND_LANDMARKS"]
+    assert [c.name for c in p.header.components] == [
+        "POSE_LANDMARKS",
+        "FACE_LANDMARKS",
+        "LEFT_HAND_LANDMARKS",
+        "RIGHT_HAND_LANDMARKS",
+    ]
     assert detect_known_pose_format(p) == "holistic"
     assert len(p.header.components[0].points) == 33
     hand = p.header.components[3].points
@@ -373,14 +411,15 @@ def test_cli_exports_a_score_and_a_rollout_with_its_score(tmp_path, capsys):
     assert info["frames"] == 31 and info["fps"] == 25.0
     want = mo.schedule_tuples(schedule(load_score(DATA / "good.json")))
     assert {k: [tuple(i) for i in v] for k, v in info["schedule"].items()} == {
-        k: list(v) for k, v in want.items()}
+        k: list(v) for k, v in want.items()
+    }
     assert {b for ivs in want.values() for b, _, _ in ivs} >= {"GOOD.K1", "GOOD.K2"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.glb", "good.html", "good.npz"]
 
 
 def _page_info(text: str) -> dict:
     start = text.index('<script type="application/json" id="azee-info">') + 47
-    return json.loads(text[start:text.index("</script>", start)])
+    return json.loads(text[start : text.index("</script>", start)])
 
 
 def test_load_motion_of_a_rollout_equals_its_realization(tmp_path, rollout):
@@ -403,44 +442,67 @@ def _exit2(argv, capsys) -> str:
 def test_unknown_suffix_is_one_message_and_no_file(tmp_path, capsys):
     out = tmp_path / "m.fbx"
     err = _exit2(["export", str(DATA / "good.json"), "-o", str(out)], capsys)
-    assert err == (f"azee-mj: error: {out}: unknown export suffix '.fbx'; use one of .glb, "
-                   ".gltf, .bvh, .pose, .csv, .html\n")
+    assert err == (
+        f"azee-mj: error: {out}: unknown export suffix '.fbx'; use one of .glb, "
+        ".gltf, .bvh, .pose, .csv, .html\n"
+    )
     assert list(tmp_path.iterdir()) == []
 
 
 def test_an_npz_of_another_model_is_refused(tmp_path, capsys):
     bad = tmp_path / "other.npz"
-    np.savez(bad, time=np.arange(3) / 50, qpos=np.zeros((3, 7)), fps=np.array(50.0),
-             site_names=np.array(["a"]), site_pos=np.zeros((3, 1, 3)))  # fmt: skip
+    np.savez(
+        bad,
+        time=np.arange(3) / 50,
+        qpos=np.zeros((3, 7)),
+        fps=np.array(50.0),
+        site_names=np.array(["a"]),
+        site_pos=np.zeros((3, 1, 3)),
+    )
     out = tmp_path / "m.glb"
     err = _exit2(["export", str(bad), "-o", str(out)], capsys)
-    assert err == (f"azee-mj: error: {bad}: qpos has 7 columns; the bundled signer has "
-                   "nq=83\n")
+    assert err == (f"azee-mj: error: {bad}: qpos has 7 columns; the bundled signer has nq=83\n")
     wrong_sites = tmp_path / "sites.npz"
-    np.savez(wrong_sites, time=np.arange(3) / 50, qpos=np.zeros((3, 83)), fps=np.array(50.0),
-             site_names=np.array(["a"]), site_pos=np.zeros((3, 1, 3)))  # fmt: skip
+    np.savez(
+        wrong_sites,
+        time=np.arange(3) / 50,
+        qpos=np.zeros((3, 83)),
+        fps=np.array(50.0),
+        site_names=np.array(["a"]),
+        site_pos=np.zeros((3, 1, 3)),
+    )
     err = _exit2(["export", str(wrong_sites), "-o", str(out)], capsys)
-    assert err == (f"azee-mj: error: {wrong_sites}: not a rollout of this signer: its "
-                   "site_names are not the catalogue's 220 AZee sites\n")
+    assert err == (
+        f"azee-mj: error: {wrong_sites}: not a rollout of this signer: its "
+        "site_names are not the catalogue's 220 AZee sites\n"
+    )
     notnpz = tmp_path / "x.npz"
     notnpz.write_text("hello")
     err = _exit2(["export", str(notnpz), "-o", str(out)], capsys)
-    assert err == (f"azee-mj: error: {notnpz}: not a rollout .npz file, or damaged (File is not "
-                   "a zip file)\n")
+    assert err == (
+        f"azee-mj: error: {notnpz}: not a rollout .npz file, or damaged (File is not a zip file)\n"
+    )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.npz", "sites.npz", "x.npz"]
 
 
-@pytest.mark.parametrize("suffix, module, what", [
-    (".glb", "pygltflib", "glTF"), (".html", "pygltflib", "The web player's"),
-    (".bvh", "bvhio", "BVH"), (".pose", "pose_format", ".pose"),
-])  # fmt: skip
-def test_a_missing_extra_is_one_message_and_no_file(tmp_path, capsys, monkeypatch, suffix,
-                                                    module, what):
+@pytest.mark.parametrize(
+    "suffix, module, what",
+    [
+        (".glb", "pygltflib", "glTF"),
+        (".html", "pygltflib", "The web player's"),
+        (".bvh", "bvhio", "BVH"),
+        (".pose", "pose_format", ".pose"),
+    ],
+)
+def test_a_missing_extra_is_one_message_and_no_file(
+    tmp_path, capsys, monkeypatch, suffix, module, what
+):
     monkeypatch.setitem(sys.modules, module, None)  # makes `import module` fail
     out = tmp_path / f"m{suffix}"
     err = _exit2(["export", str(DATA / "good.json"), "-o", str(out)], capsys)
-    assert err == (f"azee-mj: error: {what} export needs the package '{module}': "
-                   "pip install azee_mj[export]\n")
+    assert err == (
+        f"azee-mj: error: {what} export needs the package '{module}': pip install azee_mj[export]\n"
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -523,12 +585,16 @@ def test_player_controls_pause_play_speed_and_seek(browser, page):
     assert browser.evaluate("azeePlayer.playing()") is True
     browser.open_wait("azeePlayer.time() > 0.6")
     browser.evaluate("document.getElementById('play').click()")
-    browser.evaluate("(() => { const s = document.getElementById('slider'); s.value = 1.5;"
-                     " s.dispatchEvent(new Event('input')); })()")
+    browser.evaluate(
+        "(() => { const s = document.getElementById('slider'); s.value = 1.5;"
+        " s.dispatchEvent(new Event('input')); })()"
+    )
     assert browser.evaluate("azeePlayer.time()") == 1.5
     assert browser.evaluate("document.getElementById('play').textContent") == "play"
-    browser.evaluate("document.getElementById('speed').value = '0.25';"
-                     "document.getElementById('speed').dispatchEvent(new Event('change'))")
+    browser.evaluate(
+        "document.getElementById('speed').value = '0.25';"
+        "document.getElementById('speed').dispatchEvent(new Event('change'))"
+    )
     assert browser.evaluate("azeePlayer.speed()") == 0.25
     assert browser.errors() == []
 
@@ -536,12 +602,14 @@ def test_player_controls_pause_play_speed_and_seek(browser, page):
 def test_player_shows_the_blocks_of_the_current_time(browser, page, realized):
     browser.open(_url(page, "t=1.0&paused=1"), READY)
     shown = browser.evaluate("document.getElementById('blocks').textContent")
-    active = {track: [b for b, s, e in ivs if s <= 1.0 < e]
-              for track, ivs in realized.schedule.items()}  # fmt: skip
+    active = {
+        track: [b for b, s, e in ivs if s <= 1.0 < e] for track, ivs in realized.schedule.items()
+    }
     want = [f"{track.ljust(7)} {', '.join(bs)}" for track, bs in active.items() if bs]
     assert len(want) >= 3 and shown.splitlines() == want
     assert browser.evaluate("document.getElementById('clock').textContent") == (
-        f"1.00 / {(len(realized.qpos) - 1) / realized.fps:.2f} s")
+        f"1.00 / {(len(realized.qpos) - 1) / realized.fps:.2f} s"
+    )
     assert browser.errors() == []
 
 
@@ -602,6 +670,7 @@ def test_cli_export_takes_azee(tmp_path, capsys):
     page = tmp_path / "five.html"
     assert main(["export", str(rollout), "--score", str(src), "-o", str(page)]) == 0
     want = mo.schedule_tuples(schedule(load_score(compile_text(":nb-5"))))
-    assert {k: [tuple(i) for i in v] for k, v in _page_info(page.read_text())["schedule"].items()
-            } == {k: list(v) for k, v in want.items()}  # fmt: skip
+    assert {
+        k: [tuple(i) for i in v] for k, v in _page_info(page.read_text())["schedule"].items()
+    } == {k: list(v) for k, v in want.items()}
     assert "NB_5.SHAPE" in {b for ivs in want.values() for b, _, _ in ivs}

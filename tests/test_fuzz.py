@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 _spec = importlib.util.spec_from_file_location(
-    "bench_fuzz", Path(__file__).resolve().parent.parent / "bench" / "fuzz.py")
+    "bench_fuzz", Path(__file__).resolve().parent.parent / "bench" / "fuzz.py"
+)
 fuzz = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(fuzz)
 

@@ -37,9 +37,18 @@ def _run(capsys, *argv) -> tuple[int, str]:
 
 
 def _score(**root) -> dict:
-    return {"format": "azee-score", "version": 1, "root": {
-        "name": "R", "kind": "cstr", "start": 0, "end": 1,
-        "constraints": [{"type": "morph", "id": "fist", "weight": 1.0, "side": "s"}]} | root}
+    return {
+        "format": "azee-score",
+        "version": 1,
+        "root": {
+            "name": "R",
+            "kind": "cstr",
+            "start": 0,
+            "end": 1,
+            "constraints": [{"type": "morph", "id": "fist", "weight": 1.0, "side": "s"}],
+        }
+        | root,
+    }
 
 
 # ---------------------------------------------------------------------------------------
@@ -52,16 +61,20 @@ def test_a_fifo_output_is_refused_and_left_alone(tmp_path, capsys):
     os.mkfifo(fifo)
     code, err = _run(capsys, "realize", GOOD, "-o", fifo)
     assert code == 2
-    assert err == (f"{ERR}{fifo}: exists and is not a regular file (a device, fifo or socket); "
-                   "refusing to replace it\n")
+    assert err == (
+        f"{ERR}{fifo}: exists and is not a regular file (a device, fifo or socket); "
+        "refusing to replace it\n"
+    )
     assert fifo.is_fifo()
 
 
 def test_a_device_output_is_refused():
     with pytest.raises(OutputError) as e:
         check_output("/dev/null")
-    assert str(e.value) == ("/dev/null: exists and is not a regular file (a device, fifo or "
-                            "socket); refusing to replace it")
+    assert str(e.value) == (
+        "/dev/null: exists and is not a regular file (a device, fifo or "
+        "socket); refusing to replace it"
+    )
 
 
 def test_a_directory_output_is_refused(tmp_path, capsys):
@@ -99,8 +112,10 @@ def test_a_file_as_parent_directory_or_a_missing_directory(tmp_path, capsys):
     code, err = _run(capsys, "realize", GOOD, "-o", f / "o.npz")
     assert (code, err) == (2, f"{ERR}{f / 'o.npz'}: cannot be written: Not a directory\n")
     code, err = _run(capsys, "realize", GOOD, "-o", tmp_path / "no" / "o.npz")
-    assert (code, err) == (2, (f"{ERR}{tmp_path / 'no' / 'o.npz'}: the directory "
-                              f"{tmp_path / 'no'} does not exist\n"))
+    assert (code, err) == (
+        2,
+        (f"{ERR}{tmp_path / 'no' / 'o.npz'}: the directory {tmp_path / 'no'} does not exist\n"),
+    )
 
 
 def test_an_unwritable_report_is_found_before_any_work(tmp_path, capsys):
@@ -134,8 +149,13 @@ def test_report_and_render_use_the_same_rule(tmp_path, capsys):
 
 
 #: Every command that writes, with an output suffix it accepts.
-WRITERS = [("realize", ".npz"), ("report", ".html"), ("render", ".png"), ("export", ".csv"),
-           ("compile", ".json")]
+WRITERS = [
+    ("realize", ".npz"),
+    ("report", ".html"),
+    ("render", ".png"),
+    ("export", ".csv"),
+    ("compile", ".json"),
+]
 
 
 @pytest.mark.parametrize("command, suffix", WRITERS)
@@ -145,15 +165,25 @@ def test_every_writing_command_follows_the_output_rule(tmp_path, capsys, command
     fifo = tmp_path / f"pipe{suffix}"
     os.mkfifo(fifo)
     code, err = _run(capsys, command, src, "-o", fifo)
-    assert (code, err) == (2, (f"{ERR}{fifo}: exists and is not a regular file (a device, fifo "
-                               "or socket); refusing to replace it\n"))  # fmt: skip
+    assert (code, err) == (
+        2,
+        (
+            f"{ERR}{fifo}: exists and is not a regular file (a device, fifo "
+            "or socket); refusing to replace it\n"
+        ),
+    )
     link = tmp_path / f"link{suffix}"
     link.symlink_to(src)
     code, err = _run(capsys, command, src, "-o", link)
     assert (code, err) == (2, f"{ERR}{link}: is also an input ({src}); write to another file\n")
     code, err = _run(capsys, command, src, "-o", tmp_path / "no" / f"o{suffix}")
-    assert (code, err) == (2, (f"{ERR}{tmp_path / 'no' / f'o{suffix}'}: the directory "
-                               f"{tmp_path / 'no'} does not exist\n"))  # fmt: skip
+    assert (code, err) == (
+        2,
+        (
+            f"{ERR}{tmp_path / 'no' / f'o{suffix}'}: the directory "
+            f"{tmp_path / 'no'} does not exist\n"
+        ),
+    )
     assert src.read_text() == ":nb-5\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([src.name, fifo.name, link.name])
 
@@ -168,8 +198,9 @@ def test_export_score_and_lexicon_signs_are_inputs(tmp_path, capsys):
     code, err = _run(capsys, "compile", src, "-o", sign.with_suffix(".azee"), "--lexicon", lex)
     assert (code, err) == (2, f"{ERR}{sign}: is also an input ({sign}); write to another file\n")
     rollout = tmp_path / "x.npz"
-    assert main(["realize", str(src), "-o", str(rollout), "--lexicon", str(lex),
-                 "--fps", "10"]) == 0  # fmt: skip
+    assert (
+        main(["realize", str(src), "-o", str(rollout), "--lexicon", str(lex), "--fps", "10"]) == 0
+    )
     capsys.readouterr()
     page = tmp_path / "x.html"
     page.symlink_to(src)
@@ -198,8 +229,21 @@ def _long_score(path: Path, copies: int = 60) -> Path:
     for i in range(copies):
         r = dict(score["root"], name=f"S{i}", start=3.5 * i, end=3.5 * i + score["root"]["end"])
         kids.append(r)
-    path.write_text(json.dumps({"format": "azee-score", "version": 1, "root": {
-        "name": "L", "kind": "sync", "start": 0, "end": 3.5 * copies, "children": kids}}))
+    path.write_text(
+        json.dumps(
+            {
+                "format": "azee-score",
+                "version": 1,
+                "root": {
+                    "name": "L",
+                    "kind": "sync",
+                    "start": 0,
+                    "end": 3.5 * copies,
+                    "children": kids,
+                },
+            }
+        )
+    )
     return path
 
 
@@ -208,8 +252,12 @@ def test_sigterm_to_the_command_exits_143_and_leaves_nothing(tmp_path):
 
     src = _long_score(tmp_path / "long.json")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o",
-                          str(tmp_path / "o.npz")], env=env, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o", str(tmp_path / "o.npz")],
+        env=env,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     time.sleep(2.0)  # imported and realizing (the whole run takes over 10 s)
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=60)
@@ -217,12 +265,16 @@ def test_sigterm_to_the_command_exits_143_and_leaves_nothing(tmp_path):
     assert [x.name for x in tmp_path.iterdir()] == ["long.json"]
 
 
-@pytest.mark.parametrize("group, sig, code, message", [
-    (False, signal.SIGTERM, 143, "azee-mj: terminated\n"),  # to the command only
-    (True, signal.SIGINT, 130, "azee-mj: interrupted\n"),  # Ctrl-C: to the process group
-])
-def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(tmp_path, group, sig,
-                                                                      code, message):
+@pytest.mark.parametrize(
+    "group, sig, code, message",
+    [
+        (False, signal.SIGTERM, 143, "azee-mj: terminated\n"),  # to the command only
+        (True, signal.SIGINT, 130, "azee-mj: interrupted\n"),  # Ctrl-C: to the process group
+    ],
+)
+def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(
+    tmp_path, group, sig, code, message
+):
     src = tmp_path / "in"
     src.mkdir()
     _long_score(src / "long.json", copies=300)  # minutes of work for one worker
@@ -230,9 +282,14 @@ def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(tmp_path, 
     out = tmp_path / "out"
     out.mkdir()
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o",
-                          str(out), "--jobs", "2"], env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
+    p = subprocess.Popen(
+        [sys.executable, "-m", "azee_mj.cli", "realize", str(src), "-o", str(out), "--jobs", "2"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
         # Wait for good.json's summary line; the long score is then being realized in the
         # other worker.
@@ -256,14 +313,30 @@ def test_stopping_a_batch_stops_every_worker_and_leaves_whole_outputs(tmp_path, 
 # ---------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("end, message", [
-    (1e6, "R: field 'end': the score lasts 1000000 s; the longest score is 3600 s (1 hour)"),
-    (1e308, "R: field 'end': 1e+308 is out of range; numbers in a score lie within -1e+06 to 1e+06"),
-    (10**30, ("R: field 'end': an integer of about 31 digits is out of range; numbers in a "
-             "score lie within -1e+06 to 1e+06")),
-    (10**400, ("R: field 'end': an integer of about 401 digits is out of range; numbers in a "
-              "score lie within -1e+06 to 1e+06")),
-])
+@pytest.mark.parametrize(
+    "end, message",
+    [
+        (1e6, "R: field 'end': the score lasts 1000000 s; the longest score is 3600 s (1 hour)"),
+        (
+            1e308,
+            "R: field 'end': 1e+308 is out of range; numbers in a score lie within -1e+06 to 1e+06",
+        ),
+        (
+            10**30,
+            (
+                "R: field 'end': an integer of about 31 digits is out of range; numbers in a "
+                "score lie within -1e+06 to 1e+06"
+            ),
+        ),
+        (
+            10**400,
+            (
+                "R: field 'end': an integer of about 401 digits is out of range; numbers in a "
+                "score lie within -1e+06 to 1e+06"
+            ),
+        ),
+    ],
+)
 def test_long_or_huge_scores_are_refused(end, message):
     with pytest.raises(ScoreError) as e:
         load_score(_score(end=end))
@@ -274,8 +347,13 @@ def test_a_huge_integer_in_the_file(tmp_path, capsys):
     src = tmp_path / "big.json"
     src.write_text(json.dumps(_score()).replace('"end": 1', '"end": ' + "9" * 400))
     code, err = _run(capsys, "realize", src, "-o", tmp_path / "o.npz")
-    assert (code, err) == (2, (f"{ERR}{src}: invalid score: the integer 9999999999999999999… "
-                              "has 400 digits; numbers in a score lie within -1e+06 to 1e+06\n"))
+    assert (code, err) == (
+        2,
+        (
+            f"{ERR}{src}: invalid score: the integer 9999999999999999999… "
+            "has 400 digits; numbers in a score lie within -1e+06 to 1e+06\n"
+        ),
+    )
 
 
 @pytest.mark.parametrize("depth", [120, 600, 5000])
@@ -288,36 +366,48 @@ def test_deep_nesting_is_refused_without_recursion_error(tmp_path, capsys, depth
     src.write_text('{"format": "azee-score", "version": 1, "root": ' + text + "}")
     code, err = _run(capsys, "realize", src, "-o", tmp_path / "o.npz")
     assert code == 2
-    assert err in ((f"{ERR}score: the score is nested deeper than 100 levels of objects and "
-                   "arrays; the deepest nesting allowed is 100\n"),
-                   (f"{ERR}{src}: invalid score: nested deeper than 100 levels of objects and "
-                   "arrays\n"))
+    assert err in (
+        (
+            f"{ERR}score: the score is nested deeper than 100 levels of objects and "
+            "arrays; the deepest nesting allowed is 100\n"
+        ),
+        (f"{ERR}{src}: invalid score: nested deeper than 100 levels of objects and arrays\n"),
+    )
 
 
 def test_deep_expressions_are_refused():
     v = "up"
     for _ in range(200):
         v = {"unit": v}
-    data = _score(constraints=[{"type": "orient", "bone": "!palm(s)", "axis": "DIR",
-                                "rel": "abs", "vector": v}])
+    data = _score(
+        constraints=[
+            {"type": "orient", "bone": "!palm(s)", "axis": "DIR", "rel": "abs", "vector": v}
+        ]
+    )
     with pytest.raises(ScoreError) as e:
         load_score(data)
-    assert str(e.value) == ("score: the score is nested deeper than 100 levels of objects and "
-                            "arrays; the deepest nesting allowed is 100")
+    assert str(e.value) == (
+        "score: the score is nested deeper than 100 levels of objects and "
+        "arrays; the deepest nesting allowed is 100"
+    )
 
 
 @pytest.mark.parametrize("fps", ["0", "nan", "inf", "1e308", "-5", "1001"])
 @pytest.mark.parametrize("command", ["realize", "report", "render", "export"])
 def test_fps_must_be_finite_and_in_range(tmp_path, capsys, fps, command):
-    out = tmp_path / {"realize": "o.npz", "report": "r.html", "render": "o.gif",
-                      "export": "o.csv"}[command]  # fmt: skip
+    out = (
+        tmp_path
+        / {"realize": "o.npz", "report": "r.html", "render": "o.gif", "export": "o.csv"}[command]
+    )
     code, err = _run(capsys, command, GOOD, "-o", out, "--fps", fps)
     if command == "render":  # the video's frame rate
         assert float(fps) > 240 or not 0 < float(fps) <= 240
         assert (code, err) == (2, f"{ERR}--fps: must be in (0, 240], got {float(fps):g}\n")
     else:
-        assert (code, err) == (2, (f"{ERR}--fps must be a number from 1 to 1000, got "
-                                  f"{float(fps):g}\n"))  # fmt: skip
+        assert (code, err) == (
+            2,
+            (f"{ERR}--fps must be a number from 1 to 1000, got {float(fps):g}\n"),
+        )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -325,8 +415,10 @@ def test_frame_count_limit():
     assert frame_count(3600, 50) == MAX_FRAMES == 180_001
     with pytest.raises(AzeeError) as e:
         frame_count(3600, 60)
-    assert str(e.value) == ("3600 s at 60 fps is 216001 frames; the limit is 180001 frames "
-                            "(1 hour at 50 fps): lower --fps or split the score")
+    assert str(e.value) == (
+        "3600 s at 60 fps is 216001 frames; the limit is 180001 frames "
+        "(1 hour at 50 fps): lower --fps or split the score"
+    )
     with pytest.raises(AzeeError):
         check_fps(float("nan"))
 
@@ -336,8 +428,7 @@ def test_frame_count_limit():
 # ---------------------------------------------------------------------------------------
 
 
-def test_an_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path, capsys,
-                                                                      monkeypatch):  # fmt: skip
+def test_an_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path, capsys, monkeypatch):
     import azee_mj.timeline
 
     def broken(*a, **k):
@@ -345,9 +436,14 @@ def test_an_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path, c
 
     monkeypatch.setattr(azee_mj.timeline, "realize", broken)
     code, err = _run(capsys, "realize", GOOD, "-o", tmp_path / "o.npz")
-    assert (code, err) == (3, ("azee-mj: internal error (ZeroDivisionError: division by zero); "
-                              "please report it with the command and its input files (add "
-                              "--debug for the traceback)\n"))
+    assert (code, err) == (
+        3,
+        (
+            "azee-mj: internal error (ZeroDivisionError: division by zero); "
+            "please report it with the command and its input files (add "
+            "--debug for the traceback)\n"
+        ),
+    )
     code, err = _run(capsys, "--debug", "realize", GOOD, "-o", tmp_path / "o.npz")
     assert code == 3 and err.startswith("Traceback (most recent call last):")
     assert list(tmp_path.iterdir()) == []
@@ -393,9 +489,20 @@ def test_two_processes_with_different_hash_seeds_give_the_same_bytes(tmp_path):
     for seed in ("4", "5"):
         out = tmp_path / f"a{seed}.npz"
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONHASHSEED=seed)
-        subprocess.run([sys.executable, "-m", "azee_mj.cli", "realize",
-                        str(ROOT / "examples" / "armoire.json"), "-o", str(out)],
-                       env=env, check=True, capture_output=True)  # fmt: skip
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "azee_mj.cli",
+                "realize",
+                str(ROOT / "examples" / "armoire.json"),
+                "-o",
+                str(out),
+            ],
+            env=env,
+            check=True,
+            capture_output=True,
+        )
         with zipfile.ZipFile(out) as z:
             outs.append({n: z.read(n) for n in z.namelist()})
     a, b = outs
@@ -428,8 +535,11 @@ def test_sparse_residuals_round_trip_and_dense_files_still_load(tmp_path, rollou
         assert (t.block, t.index, t.first, t.frames) == (u.block, u.index, u.first, u.frames)
         assert np.array_equal(t.values, u.values, equal_nan=True)
     a = rollout_arrays(rollout)
-    dense = {k: v for k, v in a.items() if k not in ("residual_first", "residual_count",
-                                                     "residual_values")}  # fmt: skip
+    dense = {
+        k: v
+        for k, v in a.items()
+        if k not in ("residual_first", "residual_count", "residual_values")
+    }
     dense["residuals"] = np.array([t.values for t in rollout.traces]).T
     del dense["residual_reasons"]  # files from before the reasons were stored
     old = load_rollout(_write(tmp_path / "old.npz", dense), nq)
@@ -450,14 +560,20 @@ def _damaged(tmp_path, rollout, **changes):
     return _write(tmp_path / "bad.npz", a)
 
 
-@pytest.mark.parametrize("change, message", [
-    ({"fps": np.array([10.0, 20.0])}, "fps must be one number, got shape (2,)"),
-    ({"fps": np.array("ten")}, "array 'fps' must hold numbers, got dtype <U3"),
-    ({"fps": np.array(np.nan)}, "fps must be a number from 1 to 1000, got nan"),
-    ({"time": np.zeros((3, 3))}, "array 'time' must have 1 dimension(s), got shape (3, 3)"),
-    ({"site_names": np.arange(3)}, "array 'site_names' must be a list of names, got dtype int64 shape (3,)"),
-    ({"residual_names": np.array(["nohash"] * 3)}, "residual name 'nohash' is not BLOCK#INDEX"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"fps": np.array([10.0, 20.0])}, "fps must be one number, got shape (2,)"),
+        ({"fps": np.array("ten")}, "array 'fps' must hold numbers, got dtype <U3"),
+        ({"fps": np.array(np.nan)}, "fps must be a number from 1 to 1000, got nan"),
+        ({"time": np.zeros((3, 3))}, "array 'time' must have 1 dimension(s), got shape (3, 3)"),
+        (
+            {"site_names": np.arange(3)},
+            "array 'site_names' must be a list of names, got dtype int64 shape (3,)",
+        ),
+        ({"residual_names": np.array(["nohash"] * 3)}, "residual name 'nohash' is not BLOCK#INDEX"),
+    ],
+)
 def test_damaged_rollouts_are_refused_with_one_line(tmp_path, rollout, change, message):
     path = _damaged(tmp_path, rollout, **change)
     with pytest.raises(AzeeError) as e:
@@ -478,10 +594,14 @@ def test_truncated_corrupt_and_huge_header_rollouts(tmp_path, rollout, capsys):
         f.write(b"\0" * 24)
     for name in ("trunc", "noise", "huge"):
         code, err = _run(capsys, "check", tmp_path / f"{name}.npz")
-        assert code == 2 and err.startswith(f"{ERR}{tmp_path / name}.npz: ") and err.count("\n") == 1
+        assert (
+            code == 2 and err.startswith(f"{ERR}{tmp_path / name}.npz: ") and err.count("\n") == 1
+        )
     code, err = _run(capsys, "check", huge)
-    assert err == (f"{ERR}{huge}: array 'qpos.npy' announces shape (1000000000, 1000000), more "
-                   "than the file holds or than a rollout may be\n")
+    assert err == (
+        f"{ERR}{huge}: array 'qpos.npy' announces shape (1000000000, 1000000), more "
+        "than the file holds or than a rollout may be\n"
+    )
 
 
 def test_nan_postures_are_a_check_finding_and_refused_elsewhere(tmp_path, rollout, capsys):
@@ -505,12 +625,14 @@ def test_control_characters_are_escaped_and_long_names_shortened():
     data = _score(name="A\nB\x1b[2J", end=0)
     with pytest.raises(ScoreError) as e:
         load_score(data)
-    assert str(e.value) == ("A\\x0aB\\x1b[2J: field 'end': end 0 is not after start 0; a block "
-                            "needs start < end")
+    assert str(e.value) == (
+        "A\\x0aB\\x1b[2J: field 'end': end 0 is not after start 0; a block needs start < end"
+    )
     with pytest.raises(ScoreError) as e:
         load_score(_score(name="N" * 100_000, end=0))
-    assert str(e.value) == ("N" * 79 + "…: field 'end': end 0 is not after start 0; a block "
-                            "needs start < end")
+    assert str(e.value) == (
+        "N" * 79 + "…: field 'end': end 0 is not after start 0; a block needs start < end"
+    )
     assert tidy("\u202eevil " + "x" * 200) == "\\u202eevil " + "x" * 79 + "…"
 
 
@@ -518,5 +640,7 @@ def test_an_unknown_site_is_quoted_as_written(tmp_path):
     data = _score(constraints=[{"type": "place", "site": "@NOPE(s)", "at": "@FH"}])
     with pytest.raises(ScoreError) as e:
         load_score(data)
-    assert str(e.value) == ("R: constraint 1 (place): unknown site '@NOPE(s)'; did you mean "
-                            "'@NO(s)'? (azee-mj sites lists all)")
+    assert str(e.value) == (
+        "R: constraint 1 (place): unknown site '@NOPE(s)'; did you mean "
+        "'@NO(s)'? (azee-mj sites lists all)"
+    )

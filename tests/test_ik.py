@@ -35,7 +35,9 @@ def _random_arm_posture(solver, rng):
         for j in DEFAULT_MAP.tracks[f"arm_{side}"]:
             jid = solver.joint_id(j)
             lo, hi = solver.model.jnt_range[jid]
-            q[solver.model.jnt_qposadr[jid]] = rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo))
+            q[solver.model.jnt_qposadr[jid]] = rng.uniform(
+                lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo)
+            )
     return q
 
 
@@ -44,26 +46,60 @@ FARM_L = DEFAULT_MAP.bones["f_arm_L"]
 CONSTRAINTS = [
     cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))),
     cn.Place("I_TIP_R", kin.SitePos("PA_L")),
-    cn.Place("T_TIP_R", kin.Lin(((1.0, kin.SitePos("CH")), (0.06, kin.BodyAxis("head", (1.0, 0, 0)))))),
+    cn.Place(
+        "T_TIP_R", kin.Lin(((1.0, kin.SitePos("CH")), (0.06, kin.BodyAxis("head", (1.0, 0, 0)))))
+    ),
     cn.Orient("palm_R", PALM_R.nrm, cn.Rel.ALONG, kin.Const((0.0, 0.0, -1.0))),
     cn.Orient("palm_R", PALM_R.dir, cn.Rel.OPP, kin.Const((1.0, 0.0, 0.0))),
     cn.Orient("palm_R", PALM_R.nrm, cn.Rel.PERP, kin.Const((0.0, 1.0, 0.0))),
     cn.Orient("f_arm_R", (0, 0, -1.0), cn.Rel.ALONG, kin.BodyAxis("f_arm_L", FARM_L.dir)),
-    cn.Orient("palm_R", PALM_R.dir, cn.Rel.PERP,
-              kin.Unit(kin.Cross(kin.BodyAxis("f_arm_L", FARM_L.dir), kin.Const((0, 0, 1.0))))),
+    cn.Orient(
+        "palm_R",
+        PALM_R.dir,
+        cn.Rel.PERP,
+        kin.Unit(kin.Cross(kin.BodyAxis("f_arm_L", FARM_L.dir), kin.Const((0, 0, 1.0)))),
+    ),
     cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.SitePos("I_TIP_R")),
     cn.JointTarget("index_R_1_flex", 0.5),
     # forms the compiled core writes itself besides the ones above
-    cn.Orient("index_R_1", (0, 0, -1.0), cn.Rel.ALONG,
-              kin.Lin(((1.0, kin.SitePos("I_TIP_L")), (-1.0, kin.SitePos("WR_R"))))),
-    cn.Orient("palm_R", PALM_R.nrm, cn.Rel.PERP,
-              kin.Lin(((0.5, kin.SitePos("PA_L")), (0.5, kin.SitePos("CH")),
-                       (-1.0, kin.BodyOrigin("palm_R")), (1.0, kin.Const((0.0, 0.1, 0.0)))))),
-    cn.Orient("palm_R", PALM_R.dir, cn.Rel.OPP, kin.Lin(((-2.0, kin.BodyAxis("f_arm_L", FARM_L.dir)),))),
-    cn.Orient("palm_R", PALM_R.dir, cn.Rel.ALONG,
-              kin.Lin(((1.0, kin.Const((0.0, 0.0, 1.0))), (1.0, kin.Const((0.6, 0.0, 0.0)))))),
-    cn.Place("I_TIP_R", kin.Lin(((0.5, kin.SitePos("PA_L")), (0.5, kin.BodyOrigin("head")),
-                                 (1.0, kin.Const((0.0, 0.05, 0.0)))))),
+    cn.Orient(
+        "index_R_1",
+        (0, 0, -1.0),
+        cn.Rel.ALONG,
+        kin.Lin(((1.0, kin.SitePos("I_TIP_L")), (-1.0, kin.SitePos("WR_R")))),
+    ),
+    cn.Orient(
+        "palm_R",
+        PALM_R.nrm,
+        cn.Rel.PERP,
+        kin.Lin(
+            (
+                (0.5, kin.SitePos("PA_L")),
+                (0.5, kin.SitePos("CH")),
+                (-1.0, kin.BodyOrigin("palm_R")),
+                (1.0, kin.Const((0.0, 0.1, 0.0))),
+            )
+        ),
+    ),
+    cn.Orient(
+        "palm_R", PALM_R.dir, cn.Rel.OPP, kin.Lin(((-2.0, kin.BodyAxis("f_arm_L", FARM_L.dir)),))
+    ),
+    cn.Orient(
+        "palm_R",
+        PALM_R.dir,
+        cn.Rel.ALONG,
+        kin.Lin(((1.0, kin.Const((0.0, 0.0, 1.0))), (1.0, kin.Const((0.6, 0.0, 0.0))))),
+    ),
+    cn.Place(
+        "I_TIP_R",
+        kin.Lin(
+            (
+                (0.5, kin.SitePos("PA_L")),
+                (0.5, kin.BodyOrigin("head")),
+                (1.0, kin.Const((0.0, 0.05, 0.0))),
+            )
+        ),
+    ),
     cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.Const((0.4, 0.1, 0.3))),
 ]
 
@@ -101,8 +137,9 @@ def test_fast_rows_equal_expression_rows(solver, c):
 
 def test_connect_equality_rows_are_mujocos(solver):
     """Placements mirrored as connect equalities give MuJoCo the rows the solver uses."""
-    problem = ik.IKProblem((cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))),
-                            cn.Place("I_TIP_L", kin.SitePos("PA_R"))))
+    problem = ik.IKProblem(
+        (cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))), cn.Place("I_TIP_L", kin.SitePos("PA_R")))
+    )
     m = solver.model
     m.opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
     d = mujoco.MjData(m)
@@ -132,8 +169,10 @@ def test_reachable_problems_converge_to_a_tenth_of_a_millimetre(solver):
         if cn.penetration_depth(solver.model, d) > 0:
             continue
         d = _fk(solver, truth)
-        cons = tuple(cn.Place(s, kin.Const(tuple(d.site_xpos[solver.site_id(s)])))
-                     for s in ("I_TIP_R", "WR_R", "I_TIP_L", "WR_L"))
+        cons = tuple(
+            cn.Place(s, kin.Const(tuple(d.site_xpos[solver.site_id(s)])))
+            for s in ("I_TIP_R", "WR_R", "I_TIP_L", "WR_L")
+        )
         res = solver.solve(ik.IKProblem(cons, free), solver.natural)
         assert res.converged
         assert max(r.value for r in res.residuals) < 1e-4
@@ -151,15 +190,28 @@ def test_out_of_reach_target_reports_its_residual(solver):
     # once the arm is stretched (shoulder-to-target minus the limb length, within 5 cm).
     shoulder = d.xpos[solver.body_id("arm_R")]
     reach = np.linalg.norm(tip - shoulder)
-    assert res.residuals[0].value == pytest.approx(np.linalg.norm(target - shoulder) - reach, abs=0.05)
-    assert np.dot(tip - shoulder, target - shoulder) / (reach * np.linalg.norm(target - shoulder)) > 0.99
+    assert res.residuals[0].value == pytest.approx(
+        np.linalg.norm(target - shoulder) - reach, abs=0.05
+    )
+    assert (
+        np.dot(tip - shoulder, target - shoulder) / (reach * np.linalg.norm(target - shoulder))
+        > 0.99
+    )
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-0.6, 1.2)))
 def test_joint_limits_are_never_exceeded(solver, target):
-    res = solver.solve(ik.IKProblem((cn.Place("I_TIP_R", kin.Const(target)),
-                                     cn.Orient("palm_R", PALM_R.nrm, cn.Rel.ALONG, kin.Const((0, 0, 1.0))))))
+    res = solver.solve(
+        ik.IKProblem(
+            (
+                cn.Place("I_TIP_R", kin.Const(target)),
+                cn.Orient("palm_R", PALM_R.nrm, cn.Rel.ALONG, kin.Const((0, 0, 1.0))),
+            )
+        )
+    )
     m = solver.model
     q = res.qpos[m.jnt_qposadr]
     assert np.all(q >= m.jnt_range[:, 0]) and np.all(q <= m.jnt_range[:, 1])
@@ -184,8 +236,12 @@ def test_hand_pushed_into_the_face_stops_at_the_skin(solver):
 def test_fingertip_contact_touches_without_interpenetration():
     solver = make_solver(seed=0)
     # Index fingertips touch, the other fingers curled (the pointing hand shape).
-    curl = tuple(cn.JointTarget(f"{f}_{x}_{n}_flex", v) for x in "RL"
-                 for f in ("middle", "ring", "little") for n, v in ((1, 1.5), (2, 1.6), (3, 1.0)))
+    curl = tuple(
+        cn.JointTarget(f"{f}_{x}_{n}_flex", v)
+        for x in "RL"
+        for f in ("middle", "ring", "little")
+        for n, v in ((1, 1.5), (2, 1.6), (3, 1.0))
+    )
     res = solver.solve(ik.IKProblem((cn.Place("I_TIP_R", kin.SitePos("I_TIP_L")),) + curl))
     assert res.converged, res.residuals
     assert res.residuals[0].value <= 1e-3
@@ -204,8 +260,9 @@ def test_pose_check_finds_a_penetration_made_on_purpose(solver):
     report = check_poses(m, q)
     assert not report.clean
     assert report.penetrations[0].depth > 1e-3
-    assert any("arm_R" in p.geom1 + p.geom2 or "f_arm_R" in p.geom1 + p.geom2
-               for p in report.penetrations)
+    assert any(
+        "arm_R" in p.geom1 + p.geom2 or "f_arm_R" in p.geom1 + p.geom2 for p in report.penetrations
+    )
 
 
 def test_compiled_constants_are_the_solvers():
@@ -218,8 +275,14 @@ def _penetrating_posture(solver, depth=0.01):
     """The right hand pushed ``depth`` [m] into the chest: several collision rows."""
     d = _fk(solver, solver.natural)
     chest = d.site_xpos[solver.site_id("CH")].copy()
-    res = solver.solve(ik.IKProblem((cn.Place("PA_R", kin.Const(tuple(chest + [-depth, 0, 0]))),),
-                                    DEFAULT_MAP.tracks["arm_R"], collide=False), solver.natural)
+    res = solver.solve(
+        ik.IKProblem(
+            (cn.Place("PA_R", kin.Const(tuple(chest + [-depth, 0, 0]))),),
+            DEFAULT_MAP.tracks["arm_R"],
+            collide=False,
+        ),
+        solver.natural,
+    )
     return res.qpos
 
 
@@ -263,8 +326,11 @@ def test_collision_rows_match_finite_differences(solver):
     J0 = np.frombuffer(J0).reshape(r0.size, plan.free.size)
     dist, geoms = _contacts(solver, q)
     rigid = _rigid(m, plan.free)
-    hits = [k for k in range(dist.size)  # no pair may touch: floor 0
-            if dist[k] < 0 and not rigid(*m.geom_bodyid[geoms[k]])]  # fmt: skip
+    hits = [
+        k
+        for k in range(dist.size)  # no pair may touch: floor 0
+        if dist[k] < 0 and not rigid(*m.geom_bodyid[geoms[k]])
+    ]
     assert len(hits) == r0.size and depth > 0
     np.testing.assert_allclose(r0, dist[hits] / cn.COLLISION_TOL)
     smooth = (int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE))

@@ -160,21 +160,40 @@ def test_joints_are_limited_hinges_or_face_slides(model):
 @pytest.mark.parametrize(
     "joint, deg",
     [
-        ("back_1_flex", (-15, 30)), ("back_2_lat", (-15, 15)), ("back_2_rot", (-18, 18)),
-        ("neck_flex", (-40, 35)), ("neck_lat", (-25, 25)), ("neck_rot", (-45, 45)),
-        ("head_flex", (-30, 25)), ("head_lat", (-20, 20)), ("head_rot", (-25, 25)),
-        ("eye_R_yaw", (-46, 47)), ("eye_L_yaw", (-47, 46)), ("eye_L_pitch", (-32, 48)),
-        ("clav_L_elev", (-10, 40)), ("clav_R_prot", (-25, 25)),
-        ("arm_R_flex", (-60, 180)), ("arm_L_abd", (-45, 180)), ("arm_R_rot", (-90, 70)),
-        ("f_arm_L_flex", (0, 150)), ("f_arm_R_pron", (-80, 80)),
-        ("palm_R_flex", (-70, 80)), ("palm_L_dev", (-30, 20)),
-        ("index_R_1_flex", (-30, 90)), ("index_L_1_spread", (-15, 25)),
-        ("middle_R_1_spread", (-15, 15)), ("ring_L_1_spread", (-20, 10)),
-        ("little_R_1_spread", (-30, 10)), ("ring_R_2_flex", (0, 100)), ("little_L_3_flex", (0, 90)),
-        ("thumb_R_1_flex", (-25, 35)), ("thumb_L_1_abd", (0, 70)),
-        ("thumb_R_2_flex", (0, 60)), ("thumb_L_3_flex", (-20, 80)),
+        ("back_1_flex", (-15, 30)),
+        ("back_2_lat", (-15, 15)),
+        ("back_2_rot", (-18, 18)),
+        ("neck_flex", (-40, 35)),
+        ("neck_lat", (-25, 25)),
+        ("neck_rot", (-45, 45)),
+        ("head_flex", (-30, 25)),
+        ("head_lat", (-20, 20)),
+        ("head_rot", (-25, 25)),
+        ("eye_R_yaw", (-46, 47)),
+        ("eye_L_yaw", (-47, 46)),
+        ("eye_L_pitch", (-32, 48)),
+        ("clav_L_elev", (-10, 40)),
+        ("clav_R_prot", (-25, 25)),
+        ("arm_R_flex", (-60, 180)),
+        ("arm_L_abd", (-45, 180)),
+        ("arm_R_rot", (-90, 70)),
+        ("f_arm_L_flex", (0, 150)),
+        ("f_arm_R_pron", (-80, 80)),
+        ("palm_R_flex", (-70, 80)),
+        ("palm_L_dev", (-30, 20)),
+        ("index_R_1_flex", (-30, 90)),
+        ("index_L_1_spread", (-15, 25)),
+        ("middle_R_1_spread", (-15, 15)),
+        ("ring_L_1_spread", (-20, 10)),
+        ("little_R_1_spread", (-30, 10)),
+        ("ring_R_2_flex", (0, 100)),
+        ("little_L_3_flex", (0, 90)),
+        ("thumb_R_1_flex", (-25, 35)),
+        ("thumb_L_1_abd", (0, 70)),
+        ("thumb_R_2_flex", (0, 60)),
+        ("thumb_L_3_flex", (-20, 80)),
     ],
-)  # fmt: skip
+)
 def test_joint_ranges(model, joint, deg):
     np.testing.assert_allclose(model.joint(joint).range, np.radians(deg), atol=1e-9)
 
@@ -218,7 +237,7 @@ def test_morphs_stay_inside_the_ranges(model, morph):
 
 def test_dimensions(model, data):
     _forward(model, data)
-    x = lambda b: data.body(b).xpos  # noqa: E731
+    x = lambda b: data.body(b).xpos
     np.testing.assert_allclose(x("clav_R"), CLAV_R_ORIGIN, atol=1e-12)
     np.testing.assert_allclose(x("arm_R"), ARM_R_ORIGIN, atol=1e-12)
     assert x("arm_L")[1] - x("arm_R")[1] == pytest.approx(0.36)
@@ -238,8 +257,8 @@ def test_dimensions(model, data):
 
 def _bone_checks(data):
     """Pairs (bone, kind, geometric direction) with kind 'dir' or 'nrm'."""
-    x = lambda b: data.body(b).xpos  # noqa: E731
-    s = lambda n: _site(data, n)  # noqa: E731
+    x = lambda b: data.body(b).xpos
+    s = lambda n: _site(data, n)
     out = [
         ("back_1", "dir", x("back_2") - x("back_1")),
         ("back_2", "dir", x("neck") - x("back_2")),
@@ -346,13 +365,18 @@ def test_mirrored_joints_give_mirrored_motion(model, data):
 def test_sites_sit_on_their_body_part(model):
     expect = {
         "head": ["HEAD", "FH", "NO", "NSP", "MO", "BEB", "EB_R", "EYE_R", "EAR_L", "MO_L"],
-        "jaw": ["CH", "TO"], "neck": ["NK", "NK_R"], "back_2": ["ST", "ST_L", "ssp", "Rssp"],
-        "back_1": ["AB", "AB_R"], "pelvis": ["ABST", "ABST_L"], "clav_R": ["SH_R"],
+        "jaw": ["CH", "TO"],
+        "neck": ["NK", "NK_R"],
+        "back_2": ["ST", "ST_L", "ssp", "Rssp"],
+        "back_1": ["AB", "AB_R"],
+        "pelvis": ["ABST", "ABST_L"],
+        "clav_R": ["SH_R"],
         "arm_R": ["ARM_R", "ARMsh_R", "ELi_R", "ARMpit_R"],
         "f_arm_L": ["EL_L", "F_ARM_L", "F_ARMi_L", "WR_L", "WRt_L", "WRi_L"],
         "palm_R": ["PA_R", "H_BACK_R", "H_EDGE_R", "viande_R"],
-        "index_R_3": ["I_TIP_R", "I_PAD_R", "I_NA_R", "I_KN_R_3"], "thumb_L_1": ["T_KNi_L_1"],
-    }  # fmt: skip
+        "index_R_3": ["I_TIP_R", "I_PAD_R", "I_NA_R", "I_KN_R_3"],
+        "thumb_L_1": ["T_KNi_L_1"],
+    }
     for body, sites in expect.items():
         on = set(_sites_on(model, body))
         assert set(sites) <= on, (body, set(sites) - on)
@@ -360,7 +384,7 @@ def test_sites_sit_on_their_body_part(model):
 
 def test_site_placement(model, data):
     _forward(model, data)
-    s = lambda n: _site(data, n)  # noqa: E731
+    s = lambda n: _site(data, n)
     np.testing.assert_allclose(s("WR_R"), data.body("palm_R").xpos, atol=1e-12)
     np.testing.assert_allclose(s("ssp"), [0.32, 0, 0.33], atol=0.02)
     np.testing.assert_allclose(s("Lssp") - s("ssp"), [0, 0.2, 0], atol=1e-9)
@@ -391,7 +415,7 @@ def _delta(model, data, joint, site=None, body=None, amount=0.3, base=None):
 @pytest.mark.parametrize("side", "LR")
 def test_arm_sign_conventions(model, data, side):
     out = 1 if side == "L" else -1  # lateral direction (+y for the left side)
-    d = lambda j, **k: _delta(model, data, j.format(X=side), **k)  # noqa: E731
+    d = lambda j, **k: _delta(model, data, j.format(X=side), **k)
     assert d("clav_{X}_elev", body=f"arm_{side}")[2] > 0.005
     assert d("clav_{X}_prot", body=f"arm_{side}")[0] > 0.005
     assert d("arm_{X}_flex", body=f"f_arm_{side}")[0] > 0.05
@@ -413,7 +437,7 @@ def test_arm_sign_conventions(model, data, side):
 @pytest.mark.parametrize("side", "LR")
 def test_hand_sign_conventions(model, data, side):
     out = 1 if side == "L" else -1
-    d = lambda j, **k: _delta(model, data, j.format(X=side), **k)  # noqa: E731
+    d = lambda j, **k: _delta(model, data, j.format(X=side), **k)
     for f, letter in zip(FINGERS, "IMRL"):
         tip = f"{letter}_TIP_{side}"
         for n in PHALANGES:
@@ -428,7 +452,7 @@ def test_hand_sign_conventions(model, data, side):
 
 
 def test_midline_and_face_sign_conventions(model, data):
-    d = lambda j, **k: _delta(model, data, j, **k)  # noqa: E731
+    d = lambda j, **k: _delta(model, data, j, **k)
     for stem in ("back_1", "back_2", "neck", "head"):
         assert d(f"{stem}_flex", site="HEAD")[0] > 0.005, stem
         assert d(f"{stem}_lat", site="HEAD")[1] > 0.005, stem
@@ -448,7 +472,7 @@ def test_midline_and_face_sign_conventions(model, data):
         assert d(f"mouth_{side}_up", body=f"mouth_{side}", amount=0.005)[2] > 0.004
         # closing the lid moves it forward and down over the eye
         lid = model.body(f"lid_{side}")
-        g = [i for i in range(model.ngeom) if model.geom_bodyid[i] == lid.id][0]
+        g = next(i for i in range(model.ngeom) if model.geom_bodyid[i] == lid.id)
         _forward(model, data)
         p0 = data.geom_xpos[g].copy()
         q = model.qpos0.copy()
@@ -461,7 +485,7 @@ def test_midline_and_face_sign_conventions(model, data):
 
 
 def _penetrations(model, data):
-    bn = lambda g: model.body(model.geom_bodyid[g]).name  # noqa: E731
+    bn = lambda g: model.body(model.geom_bodyid[g]).name
     return [
         (bn(c.geom1), bn(c.geom2), round(float(c.dist), 5))
         for c in data.contact[: data.ncon]
@@ -476,7 +500,7 @@ def test_no_penetration_at_rest(model, data, posture):
 
 
 def test_collision_and_visual_geoms(model):
-    collide = lambda g: model.geom_contype[g] or model.geom_conaffinity[g]  # noqa: E731
+    collide = lambda g: model.geom_contype[g] or model.geom_conaffinity[g]
     for g in range(model.ngeom):
         if collide(g):
             assert model.geom_group[g] == 3
@@ -493,8 +517,11 @@ def test_excludes_are_between_close_relatives(model):
     parent = model.body_parentid
     for i in range(model.nexclude):
         b1, b2 = divmod(int(model.exclude_signature[i]), 1 << 16)
-        assert parent[b1] == b2 or parent[b2] == b1 or parent[parent[b2]] == b1 or (
-            parent[parent[b1]] == b2
+        assert (
+            parent[b1] == b2
+            or parent[b2] == b1
+            or parent[parent[b2]] == b1
+            or (parent[parent[b1]] == b2)
         )
     assert model.nexclude <= 4
 
@@ -502,16 +529,29 @@ def test_excludes_are_between_close_relatives(model):
 @pytest.mark.parametrize(
     "pair, joints",
     [
-        (("palm_R", "head"), {"arm_R_flex": 1.5, "arm_R_abd": -0.3, "arm_R_rot": 1.0,
-                              "f_arm_R_flex": 2.3}),
-        (("palm_R", "jaw"), {"arm_R_flex": 1.2, "arm_R_abd": -0.3, "arm_R_rot": 1.0,
-                             "f_arm_R_flex": 2.3}),
+        (
+            ("palm_R", "head"),
+            {"arm_R_flex": 1.5, "arm_R_abd": -0.3, "arm_R_rot": 1.0, "f_arm_R_flex": 2.3},
+        ),
+        (
+            ("palm_R", "jaw"),
+            {"arm_R_flex": 1.2, "arm_R_abd": -0.3, "arm_R_rot": 1.0, "f_arm_R_flex": 2.3},
+        ),
         (("palm_R", "back_2"), {"arm_R_rot": 1.2, "f_arm_R_flex": 2.0}),
-        (("palm_L", "palm_R"), {"arm_R_flex": 1.0, "arm_L_flex": 1.0, "arm_R_rot": 0.75,
-                                "arm_L_rot": 0.75, "f_arm_R_flex": 0.8, "f_arm_L_flex": 0.8}),
+        (
+            ("palm_L", "palm_R"),
+            {
+                "arm_R_flex": 1.0,
+                "arm_L_flex": 1.0,
+                "arm_R_rot": 0.75,
+                "arm_L_rot": 0.75,
+                "f_arm_R_flex": 0.8,
+                "f_arm_L_flex": 0.8,
+            },
+        ),
         (("arm_R", "back_2"), {"arm_R_abd": -0.4}),
     ],
-)  # fmt: skip
+)
 def test_body_contacts_are_detected(model, data, pair, joints):
     q = model.qpos0.copy()
     for j, v in joints.items():
@@ -519,15 +559,30 @@ def test_body_contacts_are_detected(model, data, pair, joints):
     _forward(model, data, q)
     bodies = {frozenset(p[:2]) for p in _penetrations(model, data)}
     bodies |= {
-        frozenset((model.body(model.geom_bodyid[c.geom1]).name,
-                   model.body(model.geom_bodyid[c.geom2]).name))
+        frozenset(
+            (
+                model.body(model.geom_bodyid[c.geom1]).name,
+                model.body(model.geom_bodyid[c.geom2]).name,
+            )
+        )
         for c in data.contact[: data.ncon]
-    }  # fmt: skip
+    }
     assert frozenset(pair) in bodies, sorted(tuple(sorted(b)) for b in bodies)
 
 
-@pytest.mark.parametrize("morph", ["fist", "flat", "thumb_opposed", "thumb_bend", "index_hook",
-                                   "fingers_spread", "jaw_open", "shoulder_shrug"])
+@pytest.mark.parametrize(
+    "morph",
+    [
+        "fist",
+        "flat",
+        "thumb_opposed",
+        "thumb_bend",
+        "index_hook",
+        "fingers_spread",
+        "jaw_open",
+        "shoulder_shrug",
+    ],
+)
 def test_hand_and_face_morphs_are_free_of_penetration(model, data, morph):
     """Each morph's full change, as target values from the rest pose, keeps the body whole."""
     q = model.qpos0.copy()

@@ -51,7 +51,9 @@ def test_effort_torques_are_mujocos_gravity_torques(solver):
         np.testing.assert_allclose(effort.torques(d), -d.qfrc_bias[hinges], atol=1e-10)
 
 
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(seed=st.integers(0, 10_000))
 def test_effort_jacobian_matches_finite_differences(solver, seed):
     m, d = solver.model, mujoco.MjData(solver.model)
@@ -140,18 +142,44 @@ def test_the_natural_term_never_moves_a_met_constraint(solver):
 
 
 #: The index-pointing hand shape of the scores below (fist, index straight).
-INDEX_SHAPE = [{"type": "morph", "id": "fist", "weight": 1.0},
-               {"type": "morph", "id": "index_bend", "weight": -1.04},
-               {"type": "morph", "id": "index_hook", "weight": -1.1}]  # fmt: skip
+INDEX_SHAPE = [
+    {"type": "morph", "id": "fist", "weight": 1.0},
+    {"type": "morph", "id": "index_bend", "weight": -1.04},
+    {"type": "morph", "id": "index_hook", "weight": -1.1},
+]
 
 
 def test_the_hand_goes_to_the_face_not_the_face_to_the_hand(solver):
-    rollout = timeline.realize({
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "C", "kind": "sync", "start": 0, "end": 1.0, "children": [
-            {"name": "HS", "kind": "cstr", "start": 0, "end": 1.0, "constraints": INDEX_SHAPE},
-            {"name": "K", "kind": "cstr", "start": 0.4, "end": 1.0, "constraints": [
-                {"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"}]}]}}, solver=solver)
+    rollout = timeline.realize(
+        {
+            "format": "azee-score",
+            "version": 1,
+            "strong_side": "R",
+            "root": {
+                "name": "C",
+                "kind": "sync",
+                "start": 0,
+                "end": 1.0,
+                "children": [
+                    {
+                        "name": "HS",
+                        "kind": "cstr",
+                        "start": 0,
+                        "end": 1.0,
+                        "constraints": INDEX_SHAPE,
+                    },
+                    {
+                        "name": "K",
+                        "kind": "cstr",
+                        "start": 0.4,
+                        "end": 1.0,
+                        "constraints": [{"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"}],
+                    },
+                ],
+            },
+        },
+        solver=solver,
+    )
     assert all(t.ok for t in rollout.traces)
     head_and_trunk = [solver.joint_id(j) for t in ("head", "spine") for j in DEFAULT_MAP.tracks[t]]
     assert np.abs(rollout.qpos[:, head_and_trunk]).max() == 0.0
@@ -161,10 +189,31 @@ def test_recruited_trunk_returns_to_neutral(solver):
     # Out of the arm's reach alone: the trunk leans to help, then straightens once the
     # block has ended.
     score = {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0, "children": [
-            {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
-                {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}]}]}}
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "R",
+            "kind": "sync",
+            "start": 0,
+            "end": 2.0,
+            "children": [
+                {
+                    "name": "FAR",
+                    "kind": "cstr",
+                    "start": 0.3,
+                    "end": 0.8,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@WR(s)",
+                            "at": {"translate": "^ssp", "by": [0.45, 0, 0]},
+                        }
+                    ],
+                }
+            ],
+        },
+    }
     rollout = timeline.realize(score, solver=solver)
     spine = [solver.joint_id(j) for j in DEFAULT_MAP.tracks["spine"]]
     assert all(t.ok for t in rollout.traces)
@@ -176,11 +225,31 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
     # The wrist 0.45 m in front of the signing space: the trunk must lean. Held at 85 % of
     # the lean the realizer keeps (toward neutral), the arm alone no longer reaches.
     score = {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "R", "kind": "sync", "start": 0, "end": 1.0, "children": [
-            {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
-                {"type": "place", "site": "@WR(s)",
-                 "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}]}]}}
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "R",
+            "kind": "sync",
+            "start": 0,
+            "end": 1.0,
+            "children": [
+                {
+                    "name": "FAR",
+                    "kind": "cstr",
+                    "start": 0.3,
+                    "end": 0.8,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@WR(s)",
+                            "at": {"translate": "^ssp", "by": [0.45, 0, 0]},
+                        }
+                    ],
+                }
+            ],
+        },
+    }
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     key = rollout.qpos[np.argmin(np.abs(rollout.time - 0.5))]
@@ -189,8 +258,9 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
     q = key.copy()
     q[spine] = solver.natural[spine] + 0.85 * (key[spine] - solver.natural[spine])
     target = Lin(((1.0, SitePos("ssp")), (1.0, Const((0.45, 0.0, 0.0)))))
-    problem = ik.IKProblem((cn.Place("WR_R", target, 1e-3, "far"),),
-                           tuple(DEFAULT_MAP.tracks["arm_R"]))  # fmt: skip
+    problem = ik.IKProblem(
+        (cn.Place("WR_R", target, 1e-3, "far"),), tuple(DEFAULT_MAP.tracks["arm_R"])
+    )
     assert not solver.solve(problem, q).converged
 
 
@@ -200,17 +270,50 @@ def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_help
     # degrees, the wrist deviates 30 degrees at most), so the trunk helps the arm; the look at
     # ^Rssp (12 degrees of head alone) is then solved on the moved trunk, not carried along.
     score = {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "P", "kind": "sync", "start": 0, "end": 0.8, "children": [
-            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": INDEX_SHAPE},
-            {"name": "IX", "kind": "cstr", "start": 0.35, "end": 0.8, "constraints": [
-                {"type": "place", "site": "@I_TIP(s)", "at": {
-                    "translate": {"mid": ["@ST(s)", "^Rssp"]}, "by": {"scale": "fwd", "by": 0.05}}},
-                {"type": "orient", "bone": "!index(s,1)", "axis": "dir", "rel": "along",
-                 "vector": {"from": "@ST(s)", "to": "^Rssp"}},
-                {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along",
-                 "vector": "down"},
-                {"type": "look", "at": "^Rssp"}]}]}}
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "P",
+            "kind": "sync",
+            "start": 0,
+            "end": 0.8,
+            "children": [
+                {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": INDEX_SHAPE},
+                {
+                    "name": "IX",
+                    "kind": "cstr",
+                    "start": 0.35,
+                    "end": 0.8,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@I_TIP(s)",
+                            "at": {
+                                "translate": {"mid": ["@ST(s)", "^Rssp"]},
+                                "by": {"scale": "fwd", "by": 0.05},
+                            },
+                        },
+                        {
+                            "type": "orient",
+                            "bone": "!index(s,1)",
+                            "axis": "dir",
+                            "rel": "along",
+                            "vector": {"from": "@ST(s)", "to": "^Rssp"},
+                        },
+                        {
+                            "type": "orient",
+                            "bone": "!palm(s)",
+                            "axis": "nrm",
+                            "rel": "along",
+                            "vector": "down",
+                        },
+                        {"type": "look", "at": "^Rssp"},
+                    ],
+                },
+            ],
+        },
+    }
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     tilt = [ergonomics.ergonomics(solver.model, q) for q in rollout.qpos]
@@ -285,8 +388,7 @@ def test_restarts_try_the_seeders_branches_and_keep_them_only_when_met(solver):
         assert calls == [1 + 4 + len(reach.SWIVEL_RETRIES) * 2]
         assert res.restarts == 3 + calls[0]
         # a problem with starts of its own does not ask the seeder
-        solver.solve(ik.IKProblem((far,), arm, seeds=(solver.natural,), restarts=3),
-                     solver.natural)  # fmt: skip
+        solver.solve(ik.IKProblem((far,), arm, seeds=(solver.natural,), restarts=3), solver.natural)
         assert len(calls) == 1
         # A failed seed never wins: the residual is the generic restarts' one.
         solver.seeder = None
@@ -305,13 +407,17 @@ def _stored_problem(path) -> tuple[ik.IKProblem, np.ndarray]:
         if "place" in c:
             cons.append(cn.Place(c["place"], expr, c["tol"], c["label"]))
         else:
-            cons.append(cn.Orient(c["orient"], tuple(c["local"]), cn.Rel(c["rel"]), expr, c["tol"],
-                                  c["label"]))  # fmt: skip
+            cons.append(
+                cn.Orient(
+                    c["orient"], tuple(c["local"]), cn.Rel(c["rel"]), expr, c["tol"], c["label"]
+                )
+            )
     return ik.IKProblem(tuple(cons), tuple(doc["free_joints"])), np.array(doc["start"])
 
 
-@pytest.mark.parametrize("name", ["branch_keyframe", "blocked_contact", "headon_contact",
-                                  "raised_upper_arm"])  # fmt: skip
+@pytest.mark.parametrize(
+    "name", ["branch_keyframe", "blocked_contact", "headon_contact", "raised_upper_arm"]
+)
 def test_a_start_on_another_branch_is_met_from_the_seeders_starts(solver, name):
     # Benchmark keyframes and the warm starts a chain reached them from: an arm on another
     # branch, fingers meeting interlocked, a thumb meeting the chin at a slant, an upper arm
@@ -339,8 +445,11 @@ def test_the_generic_restarts_alone_miss_a_keyframe_on_another_branch(solver):
 def test_a_per_frame_solve_stays_within_its_step(solver):
     q0 = _index_hand(solver)
     far = tuple(np.array([0.35, -0.1, 0.55]))
-    problem = ik.IKProblem((cn.Place("I_TIP_R", Const(far), 1e-3, "far"),),
-                           tuple(DEFAULT_MAP.tracks["arm_R"]), max_change=0.1)  # fmt: skip
+    problem = ik.IKProblem(
+        (cn.Place("I_TIP_R", Const(far), 1e-3, "far"),),
+        tuple(DEFAULT_MAP.tracks["arm_R"]),
+        max_change=0.1,
+    )
     res = solver.solve(problem, q0)
     assert np.abs(res.qpos - q0).max() <= 0.1 + 1e-12
 
@@ -353,9 +462,12 @@ def test_a_per_frame_solve_stays_inside_its_bounds_from_a_start_outside(solver):
     elbow = solver.model.jnt_qposadr[solver.joint_id("f_arm_R_flex")]
     lo, hi = solver.lower.copy(), solver.upper.copy()
     lo[elbow], hi[elbow] = q0[elbow] + 0.2, q0[elbow] + 0.3
-    problem = ik.IKProblem((cn.Place("I_TIP_R", Const(far), 1e-3, "far"),),
-                           tuple(DEFAULT_MAP.tracks["arm_R"]), max_change=0.4,
-                           bounds=(lo, hi))  # fmt: skip
+    problem = ik.IKProblem(
+        (cn.Place("I_TIP_R", Const(far), 1e-3, "far"),),
+        tuple(DEFAULT_MAP.tracks["arm_R"]),
+        max_change=0.4,
+        bounds=(lo, hi),
+    )
     res = solver.solve(problem, q0)
     assert q0[elbow] + 0.2 <= res.qpos[elbow] <= q0[elbow] + 0.3
     assert np.abs(res.qpos - q0).max() <= 0.4 + 1e-12
@@ -388,12 +500,33 @@ def test_left_handed_signing_is_the_mirror_of_right_handed(solver):
 def test_mirror_of_a_score_swaps_sides_and_reflects(solver):
     from azee_mj.score import load_score
 
-    s = load_score({
-        "format": "azee-score", "version": 1, "strong_side": "L",
-        "root": {"name": "A", "kind": "cstr", "start": 0, "end": 1, "constraints": [
-            {"type": "place", "site": "@I_TIP(s)", "at": {"translate": "^ssp", "by": [0.1, 0.2, 0.3]}},
-            {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along",
-             "vector": {"cross": ["lat(s)", "up"]}}]}})
+    s = load_score(
+        {
+            "format": "azee-score",
+            "version": 1,
+            "strong_side": "L",
+            "root": {
+                "name": "A",
+                "kind": "cstr",
+                "start": 0,
+                "end": 1,
+                "constraints": [
+                    {
+                        "type": "place",
+                        "site": "@I_TIP(s)",
+                        "at": {"translate": "^ssp", "by": [0.1, 0.2, 0.3]},
+                    },
+                    {
+                        "type": "orient",
+                        "bone": "!palm(w)",
+                        "axis": "nrm",
+                        "rel": "along",
+                        "vector": {"cross": ["lat(s)", "up"]},
+                    },
+                ],
+            },
+        }
+    )
     m = mirror.mirror_score(s)
     assert m.strong_side == "R"
     place, orient = m.root.constraints
@@ -406,20 +539,61 @@ def test_mirror_of_a_score_swaps_sides_and_reflects(solver):
 
 
 _UNREACHABLE = {
-    "format": "azee-score", "version": 1, "strong_side": "R",
-    "root": {"name": "R", "kind": "sync", "start": 0, "end": 1.0, "children": [
-        {"name": "FAR", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
-            {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [1.2, 0, 0]}}]},
-        {"name": "TWO", "kind": "cstr", "start": 0.3, "end": 0.8, "constraints": [
-            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "left"},
-            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "right"}]}]}}
+    "format": "azee-score",
+    "version": 1,
+    "strong_side": "R",
+    "root": {
+        "name": "R",
+        "kind": "sync",
+        "start": 0,
+        "end": 1.0,
+        "children": [
+            {
+                "name": "FAR",
+                "kind": "cstr",
+                "start": 0.3,
+                "end": 0.8,
+                "constraints": [
+                    {
+                        "type": "place",
+                        "site": "@WR(s)",
+                        "at": {"translate": "^ssp", "by": [1.2, 0, 0]},
+                    }
+                ],
+            },
+            {
+                "name": "TWO",
+                "kind": "cstr",
+                "start": 0.3,
+                "end": 0.8,
+                "constraints": [
+                    {
+                        "type": "orient",
+                        "bone": "!head",
+                        "axis": "nrm",
+                        "rel": "along",
+                        "vector": "left",
+                    },
+                    {
+                        "type": "orient",
+                        "bone": "!head",
+                        "axis": "nrm",
+                        "rel": "along",
+                        "vector": "right",
+                    },
+                ],
+            },
+        ],
+    },
+}
 
 
 def test_a_miss_says_why(solver):
     rollout = timeline.realize(_UNREACHABLE, solver=solver)
     why = {f"{t.block}#{t.index}": t.reason for t in rollout.traces}
-    assert why["R.FAR#1"] == ("out of reach by 462 mm (the target is 1189 mm from clav_R, "
-                              "the limb reaches 727 mm)")
+    assert why["R.FAR#1"] == (
+        "out of reach by 462 mm (the target is 1189 mm from clav_R, the limb reaches 727 mm)"
+    )
     assert why["R.TWO#1"] == "conflicts with R.TWO#2: each can be met without the other"
     assert why["R.TWO#2"] == "conflicts with R.TWO#1: each can be met without the other"
 
@@ -427,31 +601,70 @@ def test_a_miss_says_why(solver):
 def test_a_collision_names_what_would_pass_through(solver):
     # The back of the fist on the front of the belly: its edge stops on the belly, and face
     # to face the forearm would have to pass through it.
-    score = {"format": "azee-score", "version": 1, "strong_side": "R",
-             "root": {"name": "C", "kind": "sync", "start": 0, "end": 0.8, "children": [
-                 {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
-                     {"type": "morph", "id": "fist", "weight": 1, "side": "s"}]},
-                 {"name": "K", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": [
-                     {"type": "place", "site": "@H_BACK(s)", "at": "@AB(s)"}]}]}}
+    score = {
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "C",
+            "kind": "sync",
+            "start": 0,
+            "end": 0.8,
+            "children": [
+                {
+                    "name": "HS",
+                    "kind": "cstr",
+                    "start": 0,
+                    "end": 0.8,
+                    "constraints": [{"type": "morph", "id": "fist", "weight": 1, "side": "s"}],
+                },
+                {
+                    "name": "K",
+                    "kind": "cstr",
+                    "start": 0.4,
+                    "end": 0.8,
+                    "constraints": [{"type": "place", "site": "@H_BACK(s)", "at": "@AB(s)"}],
+                },
+            ],
+        },
+    }
     trace = next(t for t in timeline.realize(score, solver=solver).traces if t.block == "C.K")
     assert not trace.ok
     assert trace.reason == (
         "blocked by a collision between back_1 and palm_R (met only with them 29 mm into each "
         "other); face to face, blocked by a collision between f_arm_R and back_1 (met only "
-        "with them 72 mm into each other)")
+        "with them 72 mm into each other)"
+    )
 
 
 def test_a_joint_limit_is_named(solver):
     # The face turned straight back: the neck, head and trunk rotations all end at limits.
-    score = {"format": "azee-score", "version": 1, "strong_side": "R",
-             "root": {"name": "L", "kind": "cstr", "start": 0, "end": 0.5, "constraints": [
-                 {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along",
-                  "vector": {"add": ["back", {"scale": "left", "by": 0.2}]}}]}}
+    score = {
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "L",
+            "kind": "cstr",
+            "start": 0,
+            "end": 0.5,
+            "constraints": [
+                {
+                    "type": "orient",
+                    "bone": "!head",
+                    "axis": "nrm",
+                    "rel": "along",
+                    "vector": {"add": ["back", {"scale": "left", "by": 0.2}]},
+                }
+            ],
+        },
+    }
     (trace,) = timeline.realize(score, solver=solver).traces
     assert not trace.ok
     assert trace.reason.startswith("stopped by the upper limit of joint ")
     assert trace.reason.split("joint ")[1].split(" ")[0] in (
-        DEFAULT_MAP.tracks["head"] + DEFAULT_MAP.tracks["spine"])
+        DEFAULT_MAP.tracks["head"] + DEFAULT_MAP.tracks["spine"]
+    )
 
 
 def test_realize_strict_exits_1_on_a_miss(tmp_path):
@@ -478,12 +691,32 @@ def test_a_blend_pushed_out_of_the_body_stays_under_25_rad_per_s(solver):
     # The flat palm to the other elbow: the blend from rest passes through the body and is
     # pushed out frame by frame, each frame within a step of the one before.
     score = {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "C", "kind": "sync", "start": 0, "end": 0.8, "children": [
-            {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": [
-                {"type": "morph", "id": "flat", "weight": 1, "side": "s"}]},
-            {"name": "K", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": [
-                {"type": "place", "site": "@PA(s)", "at": "@EL(w)"}]}]}}
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "C",
+            "kind": "sync",
+            "start": 0,
+            "end": 0.8,
+            "children": [
+                {
+                    "name": "HS",
+                    "kind": "cstr",
+                    "start": 0,
+                    "end": 0.8,
+                    "constraints": [{"type": "morph", "id": "flat", "weight": 1, "side": "s"}],
+                },
+                {
+                    "name": "K",
+                    "kind": "cstr",
+                    "start": 0.4,
+                    "end": 0.8,
+                    "constraints": [{"type": "place", "site": "@PA(s)", "at": "@EL(w)"}],
+                },
+            ],
+        },
+    }
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     assert np.abs(np.diff(rollout.qpos, axis=0)).max() * rollout.fps <= 25.0

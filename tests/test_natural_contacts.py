@@ -23,15 +23,36 @@ DEG = np.pi / 180.0
 
 def contact_score(site, at, strong, weak=None):
     morphs = [{"type": "morph", "id": k, "weight": v, "side": "s"} for k, v in strong.items()]
-    morphs += [{"type": "morph", "id": k, "weight": v, "side": "w"} for k, v in (weak or {}).items()]
+    morphs += [
+        {"type": "morph", "id": k, "weight": v, "side": "w"} for k, v in (weak or {}).items()
+    ]
     return {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "C", "kind": "sync", "start": 0.0, "end": HOLD[1], "children": [
-            {"name": "SHAPE", "kind": "cstr", "start": 0.0, "end": HOLD[1], "constraints": morphs},
-            {"name": "TOUCH", "kind": "cstr", "start": HOLD[0], "end": HOLD[1],
-             "constraints": [{"type": "place", "site": site, "at": at}]},
-        ]},
-    }  # fmt: skip
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "C",
+            "kind": "sync",
+            "start": 0.0,
+            "end": HOLD[1],
+            "children": [
+                {
+                    "name": "SHAPE",
+                    "kind": "cstr",
+                    "start": 0.0,
+                    "end": HOLD[1],
+                    "constraints": morphs,
+                },
+                {
+                    "name": "TOUCH",
+                    "kind": "cstr",
+                    "start": HOLD[0],
+                    "end": HOLD[1],
+                    "constraints": [{"type": "place", "site": site, "at": at}],
+                },
+            ],
+        },
+    }
 
 
 CASES = [
@@ -47,7 +68,7 @@ CASES = [
     pytest.param("@PA(s)", "@ARM(w)", FLAT, None, id="palm-upper-arm-R"),
     # the F hand shape's thumb and index tips meet
     pytest.param("@T_TIP(s)", "@I_TIP(s)", {"hs_f": 1.0}, None, id="pinch-thumb-index-R"),
-]  # fmt: skip
+]
 
 
 def held_posture(solver, site, at, strong, weak=None):
@@ -67,7 +88,9 @@ def test_contact_is_met_naturally(solver, model, site, at, strong, weak):
     for side in "RL":
         a = e.arm(side)
         assert a.hand_above_eyes < 0.0
-        assert a.elbow_above_shoulder < 0.0, f"elbow {side} {a.elbow_above_shoulder * 1e3:.0f} mm above its shoulder"
+        assert a.elbow_above_shoulder < 0.0, (
+            f"elbow {side} {a.elbow_above_shoulder * 1e3:.0f} mm above its shoulder"
+        )
 
 
 def test_hands_join_in_front_not_behind_the_back(solver, model):

@@ -4,12 +4,11 @@
 
 import mujoco
 import pytest
+from test_natural_contacts import DEG, FLAT, INDEX, held_posture
 
 from azee_mj import natural
 from azee_mj.ergonomics import ergonomics
 from azee_mj.kinematics import Kinematics
-
-from test_natural_contacts import DEG, FLAT, INDEX, held_posture
 
 
 def upright_ergonomics(model, q):
@@ -33,8 +32,11 @@ def test_an_index_on_the_temple_keeps_the_elbow_below_the_shoulder(solver, model
     assert e.arm("R").elbow_above_shoulder < 0.0
 
 
-@pytest.mark.parametrize("site, strong", [("@PA(s)", FLAT), ("@I_TIP(s)", INDEX)],
-                         ids=["palm-elbow-R", "index-tip-elbow-R"])  # fmt: skip
+@pytest.mark.parametrize(
+    "site, strong",
+    [("@PA(s)", FLAT), ("@I_TIP(s)", INDEX)],
+    ids=["palm-elbow-R", "index-tip-elbow-R"],
+)
 def test_the_touched_arm_raises_its_forearm_in_front(solver, model, site, strong):
     q = held_posture(solver, site, "@EL(w)", strong)
     e = ergonomics(model, q)

@@ -45,10 +45,12 @@ def test_supersampling_is_as_close_to_the_reference_as_multisampling(clip, gl):
     d = mujoco.MjData(big)
     d.qpos[:] = clip.qpos[f]
     mujoco.mj_forward(big, d)
-    with mujoco.Renderer(big, height=4 * h, width=4 * w) as ref, \
-            mujoco.Renderer(rd.scene_model(w, h), height=h, width=w) as msaa, \
-            rd.FrameRenderer(clip, size=(w, h)) as ss, \
-            rd.FrameRenderer(clip, size=(w, h), antialias=False) as none:  # fmt: skip
+    with (
+        mujoco.Renderer(big, height=4 * h, width=4 * w) as ref,
+        mujoco.Renderer(rd.scene_model(w, h), height=h, width=w) as msaa,
+        rd.FrameRenderer(clip, size=(w, h)) as ss,
+        rd.FrameRenderer(clip, size=(w, h), antialias=False) as none,
+    ):
         assert ss.render_size == (480, 360) and none.render_size == (w, h)
         for r in (ref, msaa):
             r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
@@ -57,9 +59,14 @@ def test_supersampling_is_as_close_to_the_reference_as_multisampling(clip, gl):
             ref.update_scene(d, camera=cam)
             msaa.update_scene(d, camera=cam)
             want = np.asarray(Image.fromarray(ref.render()).resize((w, h), Image.BOX), float)
-            err = {k: np.abs(img - want).mean() for k, img in
-                   [("ss", ss.render(clip.qpos[f])), ("msaa", msaa.render()),
-                    ("none", none.render(clip.qpos[f]))]}  # fmt: skip
+            err = {
+                k: np.abs(img - want).mean()
+                for k, img in [
+                    ("ss", ss.render(clip.qpos[f])),
+                    ("msaa", msaa.render()),
+                    ("none", none.render(clip.qpos[f])),
+                ]
+            }
             assert err["ss"] < err["msaa"] < err["none"], (cam, err)
 
 
@@ -85,8 +92,7 @@ def test_frames_are_the_same_from_one_two_and_three_processes(clip, gl, antialia
     # The frames change over the clip, so a frame out of order would show.
     assert sum(not np.array_equal(a, b) for a, b in itertools.pairwise(one)) > 20
     for workers in (2, 3):
-        many = list(rd.render_frames(qs, items, size=SMALL, antialias=antialias,
-                                     workers=workers))  # fmt: skip
+        many = list(rd.render_frames(qs, items, size=SMALL, antialias=antialias, workers=workers))
         assert len(many) == len(one)
         assert all(np.array_equal(a, b) for a, b in zip(one, many)), workers
     assert _workers_alive() == []

@@ -28,7 +28,7 @@ def test_html_report_is_self_contained_and_names_the_blocks(tmp_path, capsys):
     assert len(images) == 4
     for b64 in images:
         assert base64.b64decode(b64).startswith(PNG)
-    assert "src=\"http" not in text and "<script" not in text  # nothing fetched
+    assert 'src="http' not in text and "<script" not in text  # nothing fetched
     assert list(tmp_path.iterdir()) == [out]  # no temp file left
 
 

@@ -47,7 +47,9 @@ def test_the_renamed_map_fits_the_renamed_model():
     spec = _renamed_spec("sg_")
     model = spec.compile()
     check_map(model, _renamed_map("sg_"))
-    with pytest.raises(ModelError, match="site 'HEAD' maps to model site 'HEAD', which the model lacks"):
+    with pytest.raises(
+        ModelError, match="site 'HEAD' maps to model site 'HEAD', which the model lacks"
+    ):
         check_map(model, DEFAULT_MAP)
 
 

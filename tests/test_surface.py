@@ -13,8 +13,8 @@ import pytest
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import kinematics as kin
-from azee_mj.schedule import make_solver
 from azee_mj.model import MODEL_PATH
+from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP, azee_site_names
 from azee_mj.surface import collision_geoms, local_distance, skin_distance
 
@@ -76,8 +76,9 @@ def test_left_normals_mirror_the_right():
     for name, n in DEFAULT_MAP.normals.items():
         if name.endswith("_R") or "_R_" in name:
             twin = name[:-2] + "_L" if name.endswith("_R") else name.replace("_R_", "_L_")
-            np.testing.assert_allclose(DEFAULT_MAP.normals[twin], [n[0], -n[1], n[2]],
-                                       atol=1e-9, err_msg=name)  # fmt: skip
+            np.testing.assert_allclose(
+                DEFAULT_MAP.normals[twin], [n[0], -n[1], n[2]], atol=1e-9, err_msg=name
+            )
         elif "_L" not in name:
             assert n[1] == 0.0, name  # midline
 
@@ -113,9 +114,11 @@ def test_skin_sites_outside_the_rest_of_the_body_at_rest(model, data):
         s = model.site(DEFAULT_MAP.sites[name])
         for g in geoms:
             if model.geom_bodyid[g] != s.bodyid[0]:
-                d = local_distance(model.geom_type[g], model.geom_size[g],
-                                   data.geom_xmat[g].reshape(3, 3).T
-                                   @ (data.site_xpos[s.id] - data.geom_xpos[g]))[0]  # fmt: skip
+                d = local_distance(
+                    model.geom_type[g],
+                    model.geom_size[g],
+                    data.geom_xmat[g].reshape(3, 3).T @ (data.site_xpos[s.id] - data.geom_xpos[g]),
+                )[0]
                 if d < -ON_SKIN:
                     inside.append(name)
     joint_sites = {n for n in inside if n.split("_")[1] in ("KN", "KNi", "INT")}
@@ -131,8 +134,10 @@ def test_shoulder_and_ear_sites_face_the_front_where_a_hand_meets_them(model, da
     down or across from beside the head, the elbow at or above the shoulder."""
     mujoco.mj_kinematics(model, data)
     lateral = -1.0 if side == "R" else 1.0
-    for name, shape in (("SH", mujoco.mjtGeom.mjGEOM_SPHERE),
-                        ("EAR", mujoco.mjtGeom.mjGEOM_ELLIPSOID)):  # fmt: skip
+    for name, shape in (
+        ("SH", mujoco.mjtGeom.mjGEOM_SPHERE),
+        ("EAR", mujoco.mjtGeom.mjGEOM_ELLIPSOID),
+    ):
         s = model.site(DEFAULT_MAP.sites[f"{name}_{side}"])
         dist, n, g = skin_distance(model, data, s.bodyid[0], data.site_xpos[s.id])
         assert abs(dist) <= ON_SKIN and model.geom_type[g] == shape, name
@@ -222,7 +227,9 @@ def test_pinch_handshapes_join_thumb_and_index_tips(model, data, shape, side):
     mujoco.mj_kinematics(model, data)
     gap = np.linalg.norm(data.site(f"T_TIP_{side}").xpos - data.site(f"I_TIP_{side}").xpos)
     assert gap < 1e-3
-    thumb, index = (collision_geoms(model, model.body(f"{d}_{side}_3").id) for d in ("thumb", "index"))
+    thumb, index = (
+        collision_geoms(model, model.body(f"{d}_{side}_3").id) for d in ("thumb", "index")
+    )
     skin = min(mujoco.mj_geomDistance(model, data, a, b, 0.01, None) for a in thumb for b in index)
     assert 0.0 <= skin < 1e-4
     mujoco.mj_collision(model, data)
@@ -238,40 +245,58 @@ def solver() -> ik.Solver:
 
 
 def _hand_targets(shape: str, sides: str) -> list[cn.JointTarget]:
-    return [cn.JointTarget(j, v) for s in sides
-            for j, v in DEFAULT_MAP.morphs[shape].joint_changes(s).items()]  # fmt: skip
+    return [
+        cn.JointTarget(j, v)
+        for s in sides
+        for j, v in DEFAULT_MAP.morphs[shape].joint_changes(s).items()
+    ]
 
 
 def _free(sides: str) -> tuple[str, ...]:
-    return tuple(j for s in sides for t in (f"arm_{s}", f"hand_{s}")
-                 for j in DEFAULT_MAP.tracks[t])  # fmt: skip
+    return tuple(j for s in sides for t in (f"arm_{s}", f"hand_{s}") for j in DEFAULT_MAP.tracks[t])
 
 
 def _face_to_face(site: str, target: str) -> list:
     """``site`` on ``target`` with their outward normals opposed."""
     m = DEFAULT_MAP
-    body = {"PA_R": "palm_R", "PA_L": "palm_L", "H_BACK_L": "palm_L", "CK_R": "head",
-            "ST_R": "back_2", "ARM_L": "arm_L"}  # fmt: skip
+    body = {
+        "PA_R": "palm_R",
+        "PA_L": "palm_L",
+        "H_BACK_L": "palm_L",
+        "CK_R": "head",
+        "ST_R": "back_2",
+        "ARM_L": "arm_L",
+    }
     return [
         cn.Place(site, kin.SitePos(target)),
-        cn.Orient(body[site], m.normals[site], cn.Rel.OPP,
-                  kin.BodyAxis(body[target], m.normals[target])),
-    ]  # fmt: skip
+        cn.Orient(
+            body[site], m.normals[site], cn.Rel.OPP, kin.BodyAxis(body[target], m.normals[target])
+        ),
+    ]
 
 
 #: On the cheek the fingers point up (within 40 degrees), as signers place them: the palm's
 #: heel then clears the eye.
-FINGERS_UP = cn.Orient("palm_R", DEFAULT_MAP.bones["palm_R"].dir, cn.Rel.ALONG,
-                       kin.Const((0.0, 0.0, 1.0)), tol=np.radians(40))  # fmt: skip
+FINGERS_UP = cn.Orient(
+    "palm_R",
+    DEFAULT_MAP.bones["palm_R"].dir,
+    cn.Rel.ALONG,
+    kin.Const((0.0, 0.0, 1.0)),
+    tol=np.radians(40),
+)
 
 
 @pytest.mark.parametrize(
     "site, target, sides, extra",
-    [("PA_R", "PA_L", "RL", ()), ("PA_R", "H_BACK_L", "RL", ()),
-     ("PA_R", "CK_R", "R", (FINGERS_UP,)), ("PA_R", "ST_R", "R", ()),
-     ("PA_R", "ARM_L", "R", ())],
+    [
+        ("PA_R", "PA_L", "RL", ()),
+        ("PA_R", "H_BACK_L", "RL", ()),
+        ("PA_R", "CK_R", "R", (FINGERS_UP,)),
+        ("PA_R", "ST_R", "R", ()),
+        ("PA_R", "ARM_L", "R", ()),
+    ],
     ids=["palm-palm", "palm-back", "palm-cheek", "palm-chest", "palm-other-upper-arm"],
-)  # fmt: skip
+)
 def test_flat_palm_contacts_meet_face_to_face(solver, site, target, sides, extra):
     """Flat hands, the body still (only the arms and hands move): the palm reaches the
     partner site face to face, with no penetration beyond the contact allowance."""

@@ -142,7 +142,9 @@ def test_bone_trill_shakes_the_head(kinds, solver):
     for f in _frames(kinds, 0.3, 1.1):
         d.qpos[:] = kinds.qpos[f]
         mujoco.mj_kinematics(solver.model, d)
-        face = d.xmat[solver.body_id("head")].reshape(3, 3) @ np.asarray(DEFAULT_MAP.bones["head"].nrm)
+        face = d.xmat[solver.body_id("head")].reshape(3, 3) @ np.asarray(
+            DEFAULT_MAP.bones["head"].nrm
+        )
         yaw.append(np.degrees(np.arctan2(face[1], face[0])))
     assert max(yaw) - min(yaw) == pytest.approx(2 * 8.0, rel=0.1)  # excursion 2A
 
@@ -164,22 +166,70 @@ def test_hold_keeps_what_the_block_reached(kinds, solver):
     end_c = kinds.qpos[_frames(kinds, 2.0, 2.4)[-1]]
     for f in _frames(kinds, 2.4, 2.8):
         for track in ("arm_R", "arm_L", "eyes"):
-            np.testing.assert_allclose(kinds.qpos[f, _dofs(solver, track)],
-                                       end_c[_dofs(solver, track)], atol=0.02)
+            np.testing.assert_allclose(
+                kinds.qpos[f, _dofs(solver, track)], end_c[_dofs(solver, track)], atol=0.02
+            )
 
 
 def _two_track_score():
     return {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "TWO", "kind": "sync", "start": 0, "end": 2.0, "children": [
-            {"name": "STILL", "kind": "cstr", "start": 0, "end": 2.0, "constraints": [
-                {"type": "place", "site": "@PA(w)", "at": {"translate": "^ssp", "by": [0, 0.1, -0.05]}},
-                {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "up"}]},
-            {"name": "K1", "kind": "cstr", "start": 0.2, "end": 0.6, "constraints": [
-                {"type": "place", "site": "@I_TIP(s)", "at": {"translate": "^Rssp", "by": [0, 0, 0.2]}}]},
-            {"name": "K2", "kind": "cstr", "start": 1.2, "end": 1.6, "constraints": [
-                {"type": "place", "site": "@I_TIP(s)", "at": {"translate": "^ssp", "by": [0, -0.05, 0.25]}}]},
-        ]},
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "TWO",
+            "kind": "sync",
+            "start": 0,
+            "end": 2.0,
+            "children": [
+                {
+                    "name": "STILL",
+                    "kind": "cstr",
+                    "start": 0,
+                    "end": 2.0,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@PA(w)",
+                            "at": {"translate": "^ssp", "by": [0, 0.1, -0.05]},
+                        },
+                        {
+                            "type": "orient",
+                            "bone": "!palm(w)",
+                            "axis": "nrm",
+                            "rel": "along",
+                            "vector": "up",
+                        },
+                    ],
+                },
+                {
+                    "name": "K1",
+                    "kind": "cstr",
+                    "start": 0.2,
+                    "end": 0.6,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@I_TIP(s)",
+                            "at": {"translate": "^Rssp", "by": [0, 0, 0.2]},
+                        }
+                    ],
+                },
+                {
+                    "name": "K2",
+                    "kind": "cstr",
+                    "start": 1.2,
+                    "end": 1.6,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@I_TIP(s)",
+                            "at": {"translate": "^ssp", "by": [0, -0.05, 0.25]},
+                        }
+                    ],
+                },
+            ],
+        },
     }
 
 
@@ -200,16 +250,40 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     # weak tip does not move the head.
     beside = {"translate": "@I_TIP(w)", "by": {"scale": "lat(s)", "by": 0.0136}}
     score = {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "TOP", "kind": "cstr", "start": 0, "end": 0.6, "constraints": [
-            {"type": "morph", "id": "flat", "weight": 1.0, "side": "s"},
-            {"type": "morph", "id": "flat", "weight": 1.0, "side": "w"},
-            {"type": "place", "site": "@I_TIP(w)",
-             "at": {"translate": "@FH", "by": {"scale": "fwd", "by": 0.2}}},
-            {"type": "place", "site": "@I_TIP(s)", "at": beside},
-            {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along", "vector": "down"},
-            {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "down"}]},
-    }  # fmt: skip
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "TOP",
+            "kind": "cstr",
+            "start": 0,
+            "end": 0.6,
+            "constraints": [
+                {"type": "morph", "id": "flat", "weight": 1.0, "side": "s"},
+                {"type": "morph", "id": "flat", "weight": 1.0, "side": "w"},
+                {
+                    "type": "place",
+                    "site": "@I_TIP(w)",
+                    "at": {"translate": "@FH", "by": {"scale": "fwd", "by": 0.2}},
+                },
+                {"type": "place", "site": "@I_TIP(s)", "at": beside},
+                {
+                    "type": "orient",
+                    "bone": "!palm(s)",
+                    "axis": "nrm",
+                    "rel": "along",
+                    "vector": "down",
+                },
+                {
+                    "type": "orient",
+                    "bone": "!palm(w)",
+                    "axis": "nrm",
+                    "rel": "along",
+                    "vector": "down",
+                },
+            ],
+        },
+    }
     rollout = timeline.realize(score, solver=solver)
     tracks = {k for k, v in rollout.schedule.items() if v}
     assert {"arm_R", "arm_L", "hand_R", "hand_L"} <= tracks and "head" not in tracks
@@ -223,8 +297,9 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     # The two hands touch as parts: any body of one hand with any body of the other.
     pairs = {tuple(sorted(p)) for v in allowed.values() for p in v}
     m = solver.model
-    hand = {s: {m.body(b).name for b in range(m.nbody) if _in_hand(m, b, f"palm_{s}")}
-            for s in "LR"}  # fmt: skip
+    hand = {
+        s: {m.body(b).name for b in range(m.nbody) if _in_hand(m, b, f"palm_{s}")} for s in "LR"
+    }
     assert pairs == {tuple(sorted((a, b))) for a in hand["L"] for b in hand["R"]}
     assert ("index_L_3", "index_R_3") in pairs
 
@@ -241,16 +316,46 @@ def test_the_head_waits_for_a_hand_held_at_the_chin(solver):
     # The thumb tip holds in front of the chin until 1.0 s and the head turns right from
     # 1.1 s: the head's blend, which would start 0.6 s ahead, waits for the hold to end.
     score = {
-        "format": "azee-score", "version": 1, "strong_side": "R",
-        "root": {"name": "S", "kind": "sync", "start": 0, "end": 1.6, "children": [
-            {"name": "K", "kind": "cstr", "start": 0.2, "end": 1.0, "constraints": [
-                {"type": "place", "site": "@T_TIP(s)",
-                 "at": {"translate": "@CH", "by": {"scale": "fwd", "by": 0.06}}}]},
-            {"name": "TURN", "kind": "cstr", "start": 1.1, "end": 1.6, "constraints": [
-                {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along",
-                 "vector": [1.0, -0.6, 0.0]}]},
-        ]},
-    }  # fmt: skip
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "S",
+            "kind": "sync",
+            "start": 0,
+            "end": 1.6,
+            "children": [
+                {
+                    "name": "K",
+                    "kind": "cstr",
+                    "start": 0.2,
+                    "end": 1.0,
+                    "constraints": [
+                        {
+                            "type": "place",
+                            "site": "@T_TIP(s)",
+                            "at": {"translate": "@CH", "by": {"scale": "fwd", "by": 0.06}},
+                        }
+                    ],
+                },
+                {
+                    "name": "TURN",
+                    "kind": "cstr",
+                    "start": 1.1,
+                    "end": 1.6,
+                    "constraints": [
+                        {
+                            "type": "orient",
+                            "bone": "!head",
+                            "axis": "nrm",
+                            "rel": "along",
+                            "vector": [1.0, -0.6, 0.0],
+                        }
+                    ],
+                },
+            ],
+        },
+    }
     rollout = timeline.realize(score, solver=solver)
     head = _dofs(solver, "head")
     held, turn = _frames(rollout, 0.0, 1.0), _frames(rollout, 1.0, 1.1)
@@ -262,12 +367,18 @@ def test_the_head_waits_for_a_hand_held_at_the_chin(solver):
 def test_flattened_mode_jerks_a_track_at_another_tracks_key(solver):
     score = _two_track_score()
     score["root"]["children"].append(
-        {"name": "BROWS", "kind": "cstr", "start": 0.85, "end": 1.0,
-         "constraints": [{"type": "morph", "id": "brows_raise", "weight": 1.0}]})
+        {
+            "name": "BROWS",
+            "kind": "cstr",
+            "start": 0.85,
+            "end": 1.0,
+            "constraints": [{"type": "morph", "id": "brows_raise", "weight": 1.0}],
+        }
+    )
     flat = timeline.realize(score, solver=solver, mode="flattened")
     multi = timeline.realize(score, solver=solver)
     arm = _dofs(solver, "arm_R")
-    speed = lambda r: np.abs(np.diff(r.qpos[:, arm], axis=0)).max(axis=1) * r.fps  # noqa: E731
+    speed = lambda r: np.abs(np.diff(r.qpos[:, arm], axis=0)).max(axis=1) * r.fps
     # Multitrack: the right arm blends K1 -> K2 straight through the brows' key at 0.85 s.
     # Flattened: every key is a whole-body posture, so the arm waits for the brows' keys and
     # then hurries: a jerk caused by a block on another track.
@@ -323,8 +434,16 @@ def _circle(a, b, c):
 # --- schedule properties ---------------------------------------------------------------
 
 _TRACK_CONSTRAINTS = {
-    "arm_R": {"type": "place", "site": "@I_TIP(R)", "at": {"translate": "^Rssp", "by": [0, 0, 0.1]}},
-    "arm_L": {"type": "place", "site": "@I_TIP(L)", "at": {"translate": "^Lssp", "by": [0, 0, 0.1]}},
+    "arm_R": {
+        "type": "place",
+        "site": "@I_TIP(R)",
+        "at": {"translate": "^Rssp", "by": [0, 0, 0.1]},
+    },
+    "arm_L": {
+        "type": "place",
+        "site": "@I_TIP(L)",
+        "at": {"translate": "^Lssp", "by": [0, 0, 0.1]},
+    },
     "face": {"type": "morph", "id": "jaw_open", "weight": 0.5},
     "hand_R": {"type": "morph", "id": "fist", "side": "R", "weight": 1.0},
 }
@@ -345,17 +464,30 @@ def _blocks(draw, depth=0, steps=40, prefix="B"):
             out.append({"name": name, "kind": "sync", "start": a, "end": b, "children": kids})
         else:
             track = draw(st.sampled_from(sorted(_TRACK_CONSTRAINTS)))
-            out.append({"name": name, "kind": "cstr", "start": a, "end": b,
-                        "constraints": [copy.deepcopy(_TRACK_CONSTRAINTS[track])]})
+            out.append(
+                {
+                    "name": name,
+                    "kind": "cstr",
+                    "start": a,
+                    "end": b,
+                    "constraints": [copy.deepcopy(_TRACK_CONSTRAINTS[track])],
+                }
+            )
     return out
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(_blocks())
 def test_schedule_intervals_lie_within_their_parents(solver, children):
-    score = load_score({"format": "azee-score", "version": 1,
-                        "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0,
-                                 "children": children}})
+    score = load_score(
+        {
+            "format": "azee-score",
+            "version": 1,
+            "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0, "children": children},
+        }
+    )
     r = timeline.Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
     sched = r.schedule()
     parents = {c.path: b for b in score.blocks() for c in b.children}

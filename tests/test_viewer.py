@@ -70,13 +70,13 @@ def test_markers_inside_k1_are_the_targets(clip):
     d = mujoco.MjData(m)
     ms = mk.markers(m, d, clip, frame, mk.Targets(clip.score))
     targets = [x for x in ms if x.kind != "contact"]
-    assert [(x.kind, x.label) for x in targets] == [("sphere", "GOOD.K1#1"),
-                                                    ("arrow", "GOOD.K1#2")]  # fmt: skip
+    assert [(x.kind, x.label) for x in targets] == [("sphere", "GOOD.K1#1"), ("arrow", "GOOD.K1#2")]
     p, origin, direction = _expected_targets(clip, frame)
     np.testing.assert_allclose(targets[0].pos, p, atol=1e-9)
     np.testing.assert_allclose(targets[1].pos, origin, atol=1e-9)
-    np.testing.assert_allclose(targets[1].end - targets[1].pos, mk.ARROW_LENGTH * direction,
-                               atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        targets[1].end - targets[1].pos, mk.ARROW_LENGTH * direction, atol=1e-9
+    )
 
 
 def test_marker_colours_follow_the_residual_traces(clip, rollout):
@@ -223,8 +223,10 @@ def test_encoder_writes_every_frame_in_order_and_raises_writer_errors():
         raise BrokenPipeError("the encoder is gone")
 
     # Stopped from outside (Ctrl-C, SIGTERM, a render error): that error wins over close's.
-    with pytest.raises(KeyboardInterrupt), rd.Encoder(written.append, (2, 2, 3),
-                                                      close=broken_close) as enc:  # fmt: skip
+    with (
+        pytest.raises(KeyboardInterrupt),
+        rd.Encoder(written.append, (2, 2, 3), close=broken_close) as enc,
+    ):
         enc.put(enc.buffer())
         raise KeyboardInterrupt
 
@@ -235,9 +237,22 @@ def test_sigterm_while_encoding_an_mp4_exits_143_and_leaves_nothing(rollout, gl,
     src = tmp_path / "good.npz"
     save_rollout(src, rollout)
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
-    p = subprocess.Popen([sys.executable, "-m", "azee_mj.cli", "render", str(src), "-o",
-                          str(tmp_path / "o.mp4"), "--fps", "240"], env=env,
-                         stderr=subprocess.PIPE, text=True)  # fmt: skip
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "azee_mj.cli",
+            "render",
+            str(src),
+            "-o",
+            str(tmp_path / "o.mp4"),
+            "--fps",
+            "240",
+        ],
+        env=env,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 120
 
     def encoding() -> bool:  # the temporary video has data: frames are going through ffmpeg
@@ -286,7 +301,7 @@ def test_contact_sheet_of_key_postures(clip, gl, tmp_path):
     img = _png(out)
     assert [k for k, _ in rd.key_frames(clip)] == ["K1", "PERM", "K2"]
     assert img.shape == (SMALL[1], 3 * SMALL[0], 3)
-    tiles = [img[:, i * SMALL[0]:(i + 1) * SMALL[0]] for i in range(3)]
+    tiles = [img[:, i * SMALL[0] : (i + 1) * SMALL[0]] for i in range(3)]
     assert np.abs(tiles[0] - tiles[2]).mean() > 0.5
 
 
@@ -294,8 +309,26 @@ def test_cli_render_from_npz_with_score(gl, tmp_path, capsys):
     npz = tmp_path / "g.npz"
     assert main(["realize", str(GOOD), "-o", str(npz)]) == 0
     out = tmp_path / "t.png"
-    assert main(["render", str(npz), "--score", str(GOOD), "-o", str(out), "--time", "0.2",
-                 "--size", "160x120", "--targets", "--camera", "three-quarter"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(npz),
+                "--score",
+                str(GOOD),
+                "-o",
+                str(out),
+                "--time",
+                "0.2",
+                "--size",
+                "160x120",
+                "--targets",
+                "--camera",
+                "three-quarter",
+            ]
+        )
+        == 0
+    )
     assert _png(out).shape == (120, 160, 3)
 
 
@@ -339,8 +372,11 @@ def display():
     if not xvfb:
         pytest.skip("no DISPLAY and no Xvfb to make one")
     n = next(k for k in range(99, 200) if not os.path.exists(f"/tmp/.X{k}-lock"))
-    proc = subprocess.Popen([xvfb, f":{n}", "-screen", "0", "800x600x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    proc = subprocess.Popen(
+        [xvfb, f":{n}", "-screen", "0", "800x600x24", "-nolisten", "tcp"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     for _ in range(50):
         if os.path.exists(f"/tmp/.X11-unix/X{n}"):
             break
@@ -352,9 +388,14 @@ def display():
 
 def test_preview_opens_plays_and_closes(display):
     env = dict(os.environ, DISPLAY=display, MUJOCO_GL="glfw")
-    r = subprocess.run([sys.executable, "-m", "azee_mj.cli", "preview", str(GOOD),
-                        "--max-frames", "4"], env=env, capture_output=True, text=True,
-                       timeout=90, check=False)  # fmt: skip
+    r = subprocess.run(
+        [sys.executable, "-m", "azee_mj.cli", "preview", str(GOOD), "--max-frames", "4"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=90,
+        check=False,
+    )
     assert r.returncode == 0, r.stderr
     assert "preview: 4 viewer updates" in r.stdout
 
@@ -369,8 +410,11 @@ def test_preview_without_display_is_a_clear_error(monkeypatch, capsys):
 def test_no_gl_backend_is_a_clear_error(monkeypatch):
     monkeypatch.delenv("MUJOCO_GL", raising=False)
     tried = []
-    with pytest.raises(AzeeError, match="no OpenGL backend for offscreen rendering: tried "
-                                        "MUJOCO_GL=egl .* and MUJOCO_GL=osmesa"):  # fmt: skip
+    with pytest.raises(
+        AzeeError,
+        match="no OpenGL backend for offscreen rendering: tried "
+        "MUJOCO_GL=egl .* and MUJOCO_GL=osmesa",
+    ):
         rd.gl_backend(probe=lambda b: tried.append(b) or False)
     assert tried == ["egl", "osmesa"]
     assert "MUJOCO_GL" not in os.environ

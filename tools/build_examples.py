@@ -66,6 +66,7 @@ def example(name: str) -> dict:
 
 def replace_point(block: dict, child: str, old: str, new: str) -> None:
     """Replace the point ``old`` by ``new`` in the constraints of ``block``'s ``child``."""
+
     def sub(x):
         if isinstance(x, dict):
             return {k: sub(v) for k, v in x.items()}
@@ -103,41 +104,52 @@ def ix() -> dict:
     # The hand takes its shape during the lead-in, as the arm moves: from the sign's start
     # it would have to change where the previous sign left the hand (at the temple after
     # penser, where an index cannot straighten).
-    shape = dict(shape, start=point["start"], end=end, constraints=[
-        {"type": "morph", "id": "hs_index", "weight": 1.0, "side": "s"}])
+    shape = dict(
+        shape,
+        start=point["start"],
+        end=end,
+        constraints=[{"type": "morph", "id": "hs_index", "weight": 1.0, "side": "s"}],
+    )
     replace_point({"children": [point]}, "IX", "^Rssp", "$loc")
     place, aim, palm, _look = point["constraints"]
     place["at"] = {"translate": "$loc", "by": {"scale": {"unit": aim["vector"]}, "by": IX_PAST}}
     # palm down as far as the index allows: "down" less its part along the pointing line
     palm["vector"] = {"cross": [aim["vector"], {"cross": ["down", aim["vector"]]}]}
     return {
-        "format": "azee-score", "version": 1, "strong_side": "R",
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
         "x-source": "IX (index pointing) at 'loc: IX_R of examples/pointing.json",
         "x-guessed": "as pointing.json (index along the line from the sternum to the "
-                     "locus, palm down, gaze at the locus; 0.35 s lead-in, 0.4 s held), but "
-                     f"the fingertip {IX_PAST} m past the locus on that line (half way from "
-                     "the chest, the strong hand cannot point at its own side), the palm as "
-                     "near down as the index allows (within 15 degrees), and the hs_index handshape taken during "
-                     "the lead-in",
+        "locus, palm down, gaze at the locus; 0.35 s lead-in, 0.4 s held), but "
+        f"the fingertip {IX_PAST} m past the locus on that line (half way from "
+        "the chest, the strong hand cannot point at its own side), the palm as "
+        "near down as the index allows (within 15 degrees), and the hs_index handshape taken during "
+        "the lead-in",
         "x-params": {"loc": {"kind": "locus", "default": "^ssp"}},
-        "root": {"name": "IX", "kind": "sync", "start": 0, "end": end,
-                 "children": [shape, point]},
-    }  # fmt: skip
+        "root": {"name": "IX", "kind": "sync", "start": 0, "end": end, "children": [shape, point]},
+    }
 
 
 def hand(side: str, shape: str, lat: float) -> tuple[dict, dict]:
     """The handshape and the hand placement of one hand of a digit."""
-    at = {"translate": "$loc", "by": {"add": [{"scale": "up", "by": DIGIT_ABOVE},
-                                              {"scale": f"lat({side})", "by": lat}]}}
+    at = {
+        "translate": "$loc",
+        "by": {"add": [{"scale": "up", "by": DIGIT_ABOVE}, {"scale": f"lat({side})", "by": lat}]},
+    }
     other = "w" if side == "s" else "s"
     shape_c = {"type": "morph", "id": shape, "weight": 1.0, "side": side}
     place = [
         {"type": "place", "site": f"@PA({side})", "at": at},
-        {"type": "orient", "bone": f"!palm({side})", "axis": "nrm", "rel": "along",
-         "vector": {"add": ["fwd", {"scale": f"lat({other})", "by": DIGIT_PALM_IN}]}},
-        {"type": "orient", "bone": f"!palm({side})", "axis": "dir", "rel": "along",
-         "vector": "up"},
-    ]  # fmt: skip
+        {
+            "type": "orient",
+            "bone": f"!palm({side})",
+            "axis": "nrm",
+            "rel": "along",
+            "vector": {"add": ["fwd", {"scale": f"lat({other})", "by": DIGIT_PALM_IN}]},
+        },
+        {"type": "orient", "bone": f"!palm({side})", "axis": "dir", "rel": "along", "vector": "up"},
+    ]
     return shape_c, place
 
 
@@ -149,21 +161,39 @@ def digit(n: int) -> dict:
     shape = [h[0] for h in hands]
     place = [c for h in hands for c in h[1]]
     return {
-        "format": "azee-score", "version": 1, "strong_side": "R",
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
         "x-source": f"LSF number {n}, palm forward, {DIGIT_ABOVE} m above 'loc",
         "x-guessed": "handshapes (1-4 index, +middle, thumb+index+middle, four fingers; 5 "
-                     "spread; 0 half-bent with the thumb opposed; 6-9 a weak 5 and a strong "
-                     "n-5), the palm facing forward and 22 degrees inward, fingers up, the "
-                     "place (0.1 m above the locus, 0.1 m to the strong side; two hands 0.32 m "
-                     f"apart) and the timing ({DIGIT_LEAD} s lead-in, {DIGIT_SECONDS} s in all)",
+        "spread; 0 half-bent with the thumb opposed; 6-9 a weak 5 and a strong "
+        "n-5), the palm facing forward and 22 degrees inward, fingers up, the "
+        "place (0.1 m above the locus, 0.1 m to the strong side; two hands 0.32 m "
+        f"apart) and the timing ({DIGIT_LEAD} s lead-in, {DIGIT_SECONDS} s in all)",
         "x-params": LOC,
-        "root": {"name": f"NB_{n}", "kind": "sync", "start": 0, "end": DIGIT_SECONDS,
-                 "children": [
-                     {"name": "SHAPE", "kind": "cstr", "start": 0, "end": DIGIT_SECONDS,
-                      "constraints": shape},
-                     {"name": "HAND", "kind": "cstr", "start": DIGIT_LEAD,
-                      "end": DIGIT_SECONDS, "constraints": place}]},
-    }  # fmt: skip
+        "root": {
+            "name": f"NB_{n}",
+            "kind": "sync",
+            "start": 0,
+            "end": DIGIT_SECONDS,
+            "children": [
+                {
+                    "name": "SHAPE",
+                    "kind": "cstr",
+                    "start": 0,
+                    "end": DIGIT_SECONDS,
+                    "constraints": shape,
+                },
+                {
+                    "name": "HAND",
+                    "kind": "cstr",
+                    "start": DIGIT_LEAD,
+                    "end": DIGIT_SECONDS,
+                    "constraints": place,
+                },
+            ],
+        },
+    }
 
 
 def main() -> int:
@@ -179,8 +209,11 @@ def main() -> int:
         if out.exists():
             old = json.loads(out.read_text(encoding="utf-8"))
             prose = {k: old[k] for k in PROSE if k in old}
-            score = {**{k: v for k, v in score.items() if k != "root"}, **prose,
-                     "root": score["root"]}  # fmt: skip
+            score = {
+                **{k: v for k, v in score.items() if k != "root"},
+                **prose,
+                "root": score["root"],
+            }
         write(out, dump_score(score))
     return 0
 

@@ -32,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from azee_mj.sites import (  # noqa: E402
+from azee_mj.sites import (
     ARM_R_ORIGIN,
     CLAV_R_ORIGIN,
     THUMB_DIR_R,
@@ -188,7 +188,7 @@ class Body:
     inertial: dict | None = None
     comment: str | None = None
 
-    def add(self, child: "Body") -> "Body":
+    def add(self, child: Body) -> Body:
         self.children.append(child)
         return child
 
@@ -222,8 +222,7 @@ def realize(body: Body, side: str) -> Body:
     def pt(p):
         return mirror_point(p) if m else np.asarray(p, float)
 
-    out = Body(sided(body.name, side), pt(body.pos), inertial=body.inertial,
-               comment=body.comment)  # fmt: skip
+    out = Body(sided(body.name, side), pt(body.pos), inertial=body.inertial, comment=body.comment)
     for j in body.joints:
         axis = j.axis
         if m and j.mirror:
@@ -231,8 +230,9 @@ def realize(body: Body, side: str) -> Body:
         lo, hi = j.range
         if isinstance(lo, dict):  # side-dependent range (the eyes)
             lo, hi = lo[side], hi[side]
-        out.joints.append(dataclasses.replace(j, name=sided(j.name, side), axis=axis,
-                                              range=(lo, hi)))  # fmt: skip
+        out.joints.append(
+            dataclasses.replace(j, name=sided(j.name, side), axis=axis, range=(lo, hi))
+        )
     for g in body.geoms:
         a = dict(g.attrs)
         if "pos" in a:
@@ -305,16 +305,24 @@ def build_pelvis() -> Body:
     pelvis = Body("pelvis", PELVIS, comment="root: fixed at the world origin (hip-joint height)")
     pelvis.geom(**ellipsoid(HIPS, col()))
     pelvis.geom(**ellipsoid(HIPS, vis("trousers")))
-    pelvis.geom(type="cylinder", fromto=[-0.02, 0, 0.085, -0.02, 0, 0.115],
-                size=[0.113], **vis("belt"))  # fmt: skip
+    pelvis.geom(
+        type="cylinder", fromto=[-0.02, 0, 0.085, -0.02, 0, 0.115], size=[0.113], **vis("belt")
+    )
 
     def legs(b):  # visual only: the model is articulated from the pelvis up
-        b.geom(type="capsule", fromto=[-0.015, -0.085, -0.02, 0.0, -0.095, -0.47],
-               size=[0.072], **vis("trousers"))  # fmt: skip
-        b.geom(type="capsule", fromto=[0.0, -0.095, -0.47, -0.02, -0.10, -0.86],
-               size=[0.052], **vis("trousers"))  # fmt: skip
-        b.geom(type="box", pos=[0.03, -0.10, -0.915], size=[0.125, 0.045, 0.035],
-               **vis("shoe"))  # fmt: skip
+        b.geom(
+            type="capsule",
+            fromto=[-0.015, -0.085, -0.02, 0.0, -0.095, -0.47],
+            size=[0.072],
+            **vis("trousers"),
+        )
+        b.geom(
+            type="capsule",
+            fromto=[0.0, -0.095, -0.47, -0.02, -0.10, -0.86],
+            size=[0.052],
+            **vis("trousers"),
+        )
+        b.geom(type="box", pos=[0.03, -0.10, -0.915], size=[0.125, 0.045, 0.035], **vis("shoe"))
 
     both_sides(legs, pelvis)
     # abdomen below the navel
@@ -332,8 +340,9 @@ def build_spine(pelvis: Body) -> tuple[Body, Body]:
     b1.joints = spine_joints("back_1", "spine", (-15, 30), (-15, 15), (-18, 18))
     b1.geom(**ellipsoid(ABDOMEN, col()))
     b1.geom(**ellipsoid(ABDOMEN, vis("shirt")))
-    b1.geom(type="ellipsoid", pos=[-0.013, 0, 0.275], size=[0.096, 0.126, 0.085],
-            **vis("shirt"))  # fmt: skip  (waist, blending abdomen and chest)
+    b1.geom(
+        type="ellipsoid", pos=[-0.013, 0, 0.275], size=[0.096, 0.126, 0.085], **vis("shirt")
+    )  # fmt: skip  (waist, blending abdomen and chest)
     b1.site("AB", front(ABDOMEN, 0.0, 0.20))
 
     def ab(b):
@@ -345,8 +354,9 @@ def build_spine(pelvis: Body) -> tuple[Body, Body]:
     b2.joints = spine_joints("back_2", "spine", (-15, 30), (-15, 15), (-18, 18))
     b2.geom(**ellipsoid(CHEST, col()))
     b2.geom(**ellipsoid(CHEST, vis("shirt")))
-    b2.geom(type="capsule", fromto=[-0.04, 0, 0.50, -0.04, 0, 0.53], size=[0.05],
-            **vis("shirt"))  # fmt: skip  (collar at the back of the neck)
+    b2.geom(
+        type="capsule", fromto=[-0.04, 0, 0.50, -0.04, 0, 0.53], size=[0.05], **vis("shirt")
+    )  # fmt: skip  (collar at the back of the neck)
     b2.site("ST", front(CHEST, 0.0, 0.40))
 
     def st(b):
@@ -367,7 +377,8 @@ def build_neck_head(b2: Body) -> Body:
     neck.geom(type="capsule", fromto=neck_ft, size=[NECK_RAD], **col())
     neck.geom(type="capsule", fromto=neck_ft, size=[NECK_RAD + 0.001], **vis("skin"))
     nk_axis = np.array(neck_ft[:3]) + (0.555 - neck_ft[2]) / (neck_ft[5] - neck_ft[2]) * (
-        np.array(neck_ft[3:]) - neck_ft[:3])  # fmt: skip
+        np.array(neck_ft[3:]) - neck_ft[:3]
+    )
     nk_fwd = unit(np.cross([0, 1, 0], np.subtract(neck_ft[3:], neck_ft[:3])))
     neck.site("NK", nk_axis + NECK_RAD * nk_fwd)
 
@@ -408,13 +419,19 @@ def build_neck_head(b2: Body) -> Body:
         # collision sphere (a sphere about the eye's centre does not change as it turns)
         b.geom(type="sphere", pos=EYE_R, size=[EYE_RAD], **shell())
         # upper lip (static, collision too); the lower lip is on the jaw, corners on mouth_X
-        for ft in ([0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
-                   [0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240]):
+        for ft in (
+            [0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
+            [0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240],
+        ):
             b.geom(type="capsule", fromto=ft, size=[0.0032], **shell())
             b.geom(type="capsule", fromto=ft, size=[0.0032], **vis("lips"))
         # lower eyelid rim (static)
-        b.geom(type="capsule", fromto=[0.074, -0.024, 0.6815, 0.074, -0.040, 0.6835],
-               size=[0.0022], **vis("skin"))  # fmt: skip
+        b.geom(
+            type="capsule",
+            fromto=[0.074, -0.024, 0.6815, 0.074, -0.040, 0.6835],
+            size=[0.0022],
+            **vis("skin"),
+        )
         for y, z, stem in ((-0.033, 0.714, "EB"), (-0.017, 0.712, "EBi"), (-0.050, 0.712, "EBe")):
             b.site(f"{stem}_{{X}}", front(CRANIUM, y, z))
         b.site("EYE_{X}", EYE_R + [EYE_RAD, 0, 0])
@@ -438,8 +455,10 @@ def build_neck_head(b2: Body) -> Body:
     jaw.geom(type="ellipsoid", pos=[0.026, 0, 0.619], size=[0.050, 0.060, 0.028], **vis("skin"))
 
     def jaw_lat(b):  # lower lip (collision too)
-        for ft in ([0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
-                   [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135]):
+        for ft in (
+            [0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
+            [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135],
+        ):
             b.geom(type="capsule", fromto=ft, size=[0.0036], **shell())
             b.geom(type="capsule", fromto=ft, size=[0.0036], **vis("lips"))
 
@@ -456,20 +475,32 @@ def build_neck_head(b2: Body) -> Body:
     ]
     for j in eye.joints:
         j.mirror = False
-    eye.inertial = dict(mass=0.0075, diaginertia=[4.3e-7, 4.3e-7, 4.3e-7])
+    eye.inertial = {"mass": 0.0075, "diaginertia": [4.3e-7, 4.3e-7, 4.3e-7]}
     eye.geom(type="sphere", pos=EYE_R, size=[0.012], **vis("sclera"))
     # iris and pupil: thin discs just proud of the eyeball's front pole
-    eye.geom(type="cylinder", fromto=np.r_[EYE_R + [0.0095, 0, 0], EYE_R + [0.0121, 0, 0]],
-             size=[0.0056], **vis("iris"))  # fmt: skip
-    eye.geom(type="cylinder", fromto=np.r_[EYE_R + [0.0100, 0, 0], EYE_R + [0.0123, 0, 0]],
-             size=[0.0025], **vis("pupil"))  # fmt: skip
+    eye.geom(
+        type="cylinder",
+        fromto=np.r_[EYE_R + [0.0095, 0, 0], EYE_R + [0.0121, 0, 0]],
+        size=[0.0056],
+        **vis("iris"),
+    )
+    eye.geom(
+        type="cylinder",
+        fromto=np.r_[EYE_R + [0.0100, 0, 0], EYE_R + [0.0123, 0, 0]],
+        size=[0.0025],
+        **vis("pupil"),
+    )
 
     lid = Body("lid_{X}", EYE_R, comment="upper eyelid; hinge through the eye's centre")
     lid.joints = [hinge("lid_{X}_close", "face_hinge", (0, 1, 0), -22.9, 63.0)]
-    lid.inertial = dict(mass=0.001, diaginertia=[1e-7, 1e-7, 1e-7])
+    lid.inertial = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
     beta = np.radians(100.0)  # rest (open) angle of the lid's centre, from +x toward +z
-    lid.geom(type="sphere", pos=EYE_R + 0.009 * np.array([np.cos(beta), 0, np.sin(beta)]),
-             size=[0.0125], **vis("skin"))  # fmt: skip
+    lid.geom(
+        type="sphere",
+        pos=EYE_R + 0.009 * np.array([np.cos(beta), 0, np.sin(beta)]),
+        size=[0.0125],
+        **vis("skin"),
+    )
 
     brow_c = front(CRANIUM, -0.033, 0.714)
     brow = Body("brow_{X}", brow_c, comment="eyebrow: raise (+z) and knit (toward the midline)")
@@ -477,15 +508,17 @@ def build_neck_head(b2: Body) -> Body:
         slide("brow_{X}_raise", (0, 0, 1), -0.006, 0.012),
         slide("brow_{X}_knit", (0, 1, 0), 0.0, 0.008),
     ]
-    brow.inertial = dict(mass=0.001, diaginertia=[1e-7, 1e-7, 1e-7])
-    pts = [front(CRANIUM, y, z) + [0.0025, 0, 0]
-           for y, z in ((-0.014, 0.7105), (-0.033, 0.7145), (-0.052, 0.7115))]  # fmt: skip
+    brow.inertial = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
+    pts = [
+        front(CRANIUM, y, z) + [0.0025, 0, 0]
+        for y, z in ((-0.014, 0.7105), (-0.033, 0.7145), (-0.052, 0.7115))
+    ]
     brow.geom(type="capsule", fromto=np.r_[pts[0], pts[1]], size=[0.0032], **vis("brow"))
     brow.geom(type="capsule", fromto=np.r_[pts[1], pts[2]], size=[0.0028], **vis("brow"))
 
     mouth = Body("mouth_{X}", np.array([0.0745, -0.0235, 0.6190]), comment="mouth corner")
     mouth.joints = [slide("mouth_{X}_up", (0, 0, 1), -0.008, 0.008)]
-    mouth.inertial = dict(mass=0.001, diaginertia=[1e-7, 1e-7, 1e-7])
+    mouth.inertial = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
     mouth.geom(type="sphere", pos=mouth.pos, size=[0.0042], **vis("lips"))
 
     for tmpl in (eye, lid, brow, mouth):
@@ -501,16 +534,24 @@ def build_finger(f: str, palm_origin: np.ndarray) -> Body:
     """A finger's three phalanges (right side, templated) hanging straight down."""
     lens, rads = PHALANX_LEN[f], PHALANX_RAD[f]
     letter = {"index": "I", "middle": "M", "ring": "R", "little": "L"}[f]
-    spread_rng = {"index": (-15, 25), "middle": (-15, 15), "ring": (-20, 10),
-                  "little": (-30, 10)}[f]  # fmt: skip
+    spread_rng = {"index": (-15, 25), "middle": (-15, 15), "ring": (-20, 10), "little": (-30, 10)}[
+        f
+    ]
     origin = palm_origin + MCP[f]
     top = None
     parent = None
     home = {1: 0.20, 2: 0.25, 3: 0.15}
     for n in (1, 2, 3):
         b = Body(f"{f}_{{X}}_{n}", origin.copy())
-        b.joints.append(hinge(f"{f}_{{X}}_{n}_flex", "finger", (1, 0, 0),
-                              *{1: (-30, 90), 2: (0, 100), 3: (0, 90)}[n], home=home[n]))
+        b.joints.append(
+            hinge(
+                f"{f}_{{X}}_{n}_flex",
+                "finger",
+                (1, 0, 0),
+                *{1: (-30, 90), 2: (0, 100), 3: (0, 90)}[n],
+                home=home[n],
+            )
+        )
         if n == 1:
             b.joints.append(hinge(f"{f}_{{X}}_1_spread", "finger", (0, -1, 0), *spread_rng))
         L, r = lens[n - 1], rads[n - 1]
@@ -526,8 +567,12 @@ def build_finger(f: str, palm_origin: np.ndarray) -> Body:
         b.site(f"{letter}_INT_{{X}}_{n}", mid + r * PALMAR_R)
         if n == 3:
             pad = origin + 0.55 * L * DOWN
-            b.geom(type="box", pos=pad - 0.62 * r * PALMAR_R, size=[0.72 * r, 0.45 * r, 0.36 * L],
-                   **vis("nail"))  # fmt: skip
+            b.geom(
+                type="box",
+                pos=pad - 0.62 * r * PALMAR_R,
+                size=[0.72 * r, 0.45 * r, 0.36 * L],
+                **vis("nail"),
+            )
             b.site(f"{letter}_TIP_{{X}}", end)
             b.site(f"{letter}_PAD_{{X}}", pad + r * PALMAR_R)
             b.site(f"{letter}_NA_{{X}}", pad - r * PALMAR_R)
@@ -555,8 +600,15 @@ def build_thumb(palm_origin: np.ndarray) -> Body:
                 hinge("thumb_{X}_1_abd", "thumb", abd_axis, 0, 70, home=0.10),
             ]
         else:
-            b.joints = [hinge(f"thumb_{{X}}_{n}_flex", "thumb", flex_axis,
-                              *{2: (0, 60), 3: (-20, 80)}[n], home=home[n])]  # fmt: skip
+            b.joints = [
+                hinge(
+                    f"thumb_{{X}}_{n}_flex",
+                    "thumb",
+                    flex_axis,
+                    *{2: (0, 60), 3: (-20, 80)}[n],
+                    home=home[n],
+                )
+            ]
         L, r = THUMB_LEN[n - 1], THUMB_RAD[n - 1]
         end = origin + L * THUMB_D
         tip_end = end - r * THUMB_D if n == 3 else end
@@ -571,9 +623,13 @@ def build_thumb(palm_origin: np.ndarray) -> Body:
             pad = origin + 0.55 * L * THUMB_D
             side_ax = unit(np.cross(THUMB_D, THUMB_N))
             # nail: a thin box aligned with the thumb (zaxis = -NRM, x along the width)
-            b.geom(type="ellipsoid", pos=pad - 0.62 * r * THUMB_N,
-                   size=[0.74 * r, 0.38 * L, 0.45 * r],
-                   xyaxes=np.r_[side_ax, THUMB_D], **vis("nail"))  # fmt: skip
+            b.geom(
+                type="ellipsoid",
+                pos=pad - 0.62 * r * THUMB_N,
+                size=[0.74 * r, 0.38 * L, 0.45 * r],
+                xyaxes=np.r_[side_ax, THUMB_D],
+                **vis("nail"),
+            )
             b.site("T_TIP_{X}", end)
             b.site("T_PAD_{X}", pad + r * THUMB_N)
             b.site("T_NA_{X}", pad - r * THUMB_N)
@@ -641,8 +697,12 @@ def build_arm() -> Body:
     farm.geom(type="capsule", fromto=fa2, size=[0.025], **col())
     farm.geom(type="capsule", fromto=fa1, size=[0.031], **vis("shirt"))
     farm.geom(type="capsule", fromto=fa2, size=[0.026], **vis("shirt"))
-    farm.geom(type="cylinder", fromto=np.r_[WRIST_R + [0, 0, 0.028], WRIST_R + [0, 0, 0.04]],
-              size=[0.0272], **vis("cuff"))  # fmt: skip
+    farm.geom(
+        type="cylinder",
+        fromto=np.r_[WRIST_R + [0, 0, 0.028], WRIST_R + [0, 0, 0.04]],
+        size=[0.0272],
+        **vis("cuff"),
+    )
     # olecranon: a sphere on the forearm, posterior to the elbow centre; EL is its proximal
     # apex, the elbow's lowest point with the forearm vertical (an elbow resting on a hand);
     # with the arm straight it sits in the upper arm's end, as in the olecranon fossa
@@ -672,12 +732,24 @@ def build_arm() -> Body:
     # wrist, thenar and hypothenar eminences (visual)
     # (no deeper than the palm's box: the palm's face is flat, so that it can lie on a palm,
     # the back of a hand, the chest or a cheek)
-    palm.geom(type="ellipsoid", pos=WRIST_R + [0.0, 0.0, 0.002],
-              size=[0.027, PALM_HALF_THICK, 0.016], **vis("skin"))  # fmt: skip
-    palm.geom(type="ellipsoid", pos=WRIST_R + [0.020, 0.001, -0.036],
-              size=[0.016, PALM_HALF_THICK - 0.001, 0.026], **vis("skin"))  # fmt: skip
-    palm.geom(type="ellipsoid", pos=WRIST_R + [-0.030, 0.002, -0.040],
-              size=[0.012, PALM_HALF_THICK - 0.002, 0.026], **vis("skin"))  # fmt: skip
+    palm.geom(
+        type="ellipsoid",
+        pos=WRIST_R + [0.0, 0.0, 0.002],
+        size=[0.027, PALM_HALF_THICK, 0.016],
+        **vis("skin"),
+    )
+    palm.geom(
+        type="ellipsoid",
+        pos=WRIST_R + [0.020, 0.001, -0.036],
+        size=[0.016, PALM_HALF_THICK - 0.001, 0.026],
+        **vis("skin"),
+    )
+    palm.geom(
+        type="ellipsoid",
+        pos=WRIST_R + [-0.030, 0.002, -0.040],
+        size=[0.012, PALM_HALF_THICK - 0.002, 0.026],
+        **vis("skin"),
+    )
     zc = -0.045
     palm.site("PA_{X}", WRIST_R + [0.0, PALM_HALF_THICK, zc])
     palm.site("H_BACK_{X}", WRIST_R + [0.0, -PALM_HALF_THICK, zc])
@@ -722,17 +794,17 @@ MATERIALS = {
 
 #: Joint classes: damping [N m s/rad or N s/m] and armature [kg m^2 or kg].
 JOINT_CLASSES = {
-    "spine": dict(damping="8", armature="0.1"),
-    "neck": dict(damping="2", armature="0.03"),
-    "girdle": dict(damping="3", armature="0.05"),
-    "shoulder": dict(damping="2", armature="0.05"),
-    "elbow": dict(damping="1", armature="0.02"),
-    "wrist": dict(damping="0.3", armature="0.005"),
-    "finger": dict(damping="0.03", armature="0.0005"),
-    "thumb": dict(damping="0.03", armature="0.0005"),
-    "eye": dict(damping="0.005", armature="0.0001"),
-    "face_hinge": dict(damping="0.005", armature="0.0001"),
-    "face_slide": dict(type="slide", damping="0.5", armature="0.02"),
+    "spine": {"damping": "8", "armature": "0.1"},
+    "neck": {"damping": "2", "armature": "0.03"},
+    "girdle": {"damping": "3", "armature": "0.05"},
+    "shoulder": {"damping": "2", "armature": "0.05"},
+    "elbow": {"damping": "1", "armature": "0.02"},
+    "wrist": {"damping": "0.3", "armature": "0.005"},
+    "finger": {"damping": "0.03", "armature": "0.0005"},
+    "thumb": {"damping": "0.03", "armature": "0.0005"},
+    "eye": {"damping": "0.005", "armature": "0.0001"},
+    "face_hinge": {"damping": "0.005", "armature": "0.0001"},
+    "face_slide": {"type": "slide", "damping": "0.5", "armature": "0.02"},
 }
 
 #: Pairs of bodies whose contacts are excluded (besides parent-child, see README.md).
@@ -764,8 +836,13 @@ def write_body(parent_el, body: Body, parent_pos) -> None:
         attrs["gravcomp"] = "1"
     el = ET.SubElement(parent_el, "body", attrs)
     if body.inertial:
-        ET.SubElement(el, "inertial", pos="0 0 0", mass=fmt(body.inertial["mass"]),
-                      diaginertia=fmt(body.inertial["diaginertia"]))  # fmt: skip
+        ET.SubElement(
+            el,
+            "inertial",
+            pos="0 0 0",
+            mass=fmt(body.inertial["mass"]),
+            diaginertia=fmt(body.inertial["diaginertia"]),
+        )
     for j in body.joints:
         ja = {"name": j.name, "class": j.cls, "axis": fmt(j.axis), "range": fmt(j.range)}
         ET.SubElement(el, "joint", ja)
@@ -803,8 +880,14 @@ def signer_xml(root: Body) -> ET.ElementTree:
     default = ET.SubElement(mj, "default")
     top = ET.SubElement(default, "default", {"class": "signer"})
     ET.SubElement(top, "joint", type="hinge", limited="true", damping="1", armature="0.01")
-    ET.SubElement(top, "geom", density="1050", friction="0.8 0.02 0.001",
-                  solref="0.01 1", solimp="0.95 0.99 0.001")  # fmt: skip
+    ET.SubElement(
+        top,
+        "geom",
+        density="1050",
+        friction="0.8 0.02 0.001",
+        solref="0.01 1",
+        solimp="0.95 0.99 0.001",
+    )
     ET.SubElement(top, "site", size="0.003", group="4", rgba="0.9 0.2 0.2 1")
     for cls, attrs in JOINT_CLASSES.items():
         d = ET.SubElement(top, "default", {"class": cls})
@@ -853,26 +936,77 @@ def scene_xml() -> ET.ElementTree:
     ET.SubElement(mj, "include", file="signer.xml")
     ET.SubElement(mj, "statistic", center="0 0 0.4", extent="1.0")
     visual = ET.SubElement(mj, "visual")
-    ET.SubElement(visual, "headlight", diffuse="0.5 0.5 0.5", ambient="0.35 0.35 0.35",
-                  specular="0 0 0")  # fmt: skip
+    ET.SubElement(
+        visual, "headlight", diffuse="0.5 0.5 0.5", ambient="0.35 0.35 0.35", specular="0 0 0"
+    )
     ET.SubElement(visual, "rgba", haze="0.15 0.25 0.35 1")
-    ET.SubElement(visual, "global", azimuth="150", elevation="-15", offwidth="1280",
-                  offheight="960")  # fmt: skip
+    ET.SubElement(
+        visual, "global", azimuth="150", elevation="-15", offwidth="1280", offheight="960"
+    )
     asset = ET.SubElement(mj, "asset")
-    ET.SubElement(asset, "texture", type="skybox", builtin="gradient", rgb1="0.55 0.65 0.75",
-                  rgb2="0.2 0.25 0.3", width="512", height="3072")  # fmt: skip
-    ET.SubElement(asset, "texture", type="2d", name="groundplane", builtin="checker",
-                  mark="edge", rgb1="0.45 0.47 0.5", rgb2="0.4 0.42 0.45",
-                  markrgb="0.6 0.6 0.6", width="300", height="300")  # fmt: skip
-    ET.SubElement(asset, "material", name="groundplane", texture="groundplane",
-                  texuniform="true", texrepeat="4 4", reflectance="0.1")  # fmt: skip
+    ET.SubElement(
+        asset,
+        "texture",
+        type="skybox",
+        builtin="gradient",
+        rgb1="0.55 0.65 0.75",
+        rgb2="0.2 0.25 0.3",
+        width="512",
+        height="3072",
+    )
+    ET.SubElement(
+        asset,
+        "texture",
+        type="2d",
+        name="groundplane",
+        builtin="checker",
+        mark="edge",
+        rgb1="0.45 0.47 0.5",
+        rgb2="0.4 0.42 0.45",
+        markrgb="0.6 0.6 0.6",
+        width="300",
+        height="300",
+    )
+    ET.SubElement(
+        asset,
+        "material",
+        name="groundplane",
+        texture="groundplane",
+        texuniform="true",
+        texrepeat="4 4",
+        reflectance="0.1",
+    )
     wb = ET.SubElement(mj, "worldbody")
-    ET.SubElement(wb, "light", name="key", pos="1.5 -1.0 2.2", dir=fmt(unit([-1.5, 1.0, -1.8])),
-                  directional="true", diffuse="0.55 0.55 0.55")  # fmt: skip
-    ET.SubElement(wb, "light", name="fill", pos="1.2 1.5 1.2", dir=fmt(unit([-1.2, -1.5, -0.8])),
-                  directional="true", diffuse="0.25 0.25 0.25", castshadow="false")  # fmt: skip
-    ET.SubElement(wb, "geom", name="floor", type="plane", pos="0 0 -0.95", size="0 0 0.05",
-                  material="groundplane", contype="1", conaffinity="1")  # fmt: skip
+    ET.SubElement(
+        wb,
+        "light",
+        name="key",
+        pos="1.5 -1.0 2.2",
+        dir=fmt(unit([-1.5, 1.0, -1.8])),
+        directional="true",
+        diffuse="0.55 0.55 0.55",
+    )
+    ET.SubElement(
+        wb,
+        "light",
+        name="fill",
+        pos="1.2 1.5 1.2",
+        dir=fmt(unit([-1.2, -1.5, -0.8])),
+        directional="true",
+        diffuse="0.25 0.25 0.25",
+        castshadow="false",
+    )
+    ET.SubElement(
+        wb,
+        "geom",
+        name="floor",
+        type="plane",
+        pos="0 0 -0.95",
+        size="0 0 0.05",
+        material="groundplane",
+        contype="1",
+        conaffinity="1",
+    )
     target = (0.0, 0.0, 0.30)  # frames the signing space: head to the hands at rest
     cams = {
         "front": ((2.0, 0.0, 0.45), target, (0, 0, 1)),
@@ -881,8 +1015,9 @@ def scene_xml() -> ET.ElementTree:
         "top": ((0.35, 0.0, 2.10), (0.05, 0.0, 0.35), (1, 0, 0)),
     }
     for name, (pos, tgt, up) in cams.items():
-        ET.SubElement(wb, "camera", name=name, pos=fmt(pos), xyaxes=look_at(pos, tgt, up),
-                      fovy="40")  # fmt: skip
+        ET.SubElement(
+            wb, "camera", name=name, pos=fmt(pos), xyaxes=look_at(pos, tgt, up), fovy="40"
+        )
     return ET.ElementTree(mj)
 
 
@@ -932,8 +1067,11 @@ def check_skin(path: Path) -> list[str]:
 def main() -> None:
     root = build_model()
     write(signer_xml(root), OUT_DIR / "signer.xml", HEADER)
-    write(scene_xml(), OUT_DIR / "scene.xml",
-          "\n  Generated by tools/build_signer.py: the signer on a floor, lights, cameras.\n")
+    write(
+        scene_xml(),
+        OUT_DIR / "scene.xml",
+        "\n  Generated by tools/build_signer.py: the signer on a floor, lights, cameras.\n",
+    )
     print(f"wrote {OUT_DIR / 'signer.xml'} and {OUT_DIR / 'scene.xml'}")
     problems = check_skin(OUT_DIR / "signer.xml")
     if problems:

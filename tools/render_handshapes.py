@@ -28,17 +28,46 @@ from azee_mj.render import gl_backend, scene_model
 from azee_mj.sites import DEFAULT_MAP, HANDSHAPES
 
 RAISE = {
-    "format": "azee-score", "version": 1, "strong_side": "R",
-    "root": {"name": "RAISE", "kind": "sync", "start": 0, "end": 0.4, "children": [
-        {"name": "HAND", "kind": "cstr", "start": 0, "end": 0.4, "constraints": [
-            {"type": "morph", "id": "hs_flat", "weight": 1.0, "side": "s"},
-            {"type": "place", "site": "@PA(s)",
-             "at": {"translate": "^ssp", "by": {"scale": "up", "by": 0.15}}},
-            {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along",
-             "vector": "fwd"},
-            {"type": "orient", "bone": "!palm(s)", "axis": "dir", "rel": "along",
-             "vector": "up"}]}]},
-}  # fmt: skip
+    "format": "azee-score",
+    "version": 1,
+    "strong_side": "R",
+    "root": {
+        "name": "RAISE",
+        "kind": "sync",
+        "start": 0,
+        "end": 0.4,
+        "children": [
+            {
+                "name": "HAND",
+                "kind": "cstr",
+                "start": 0,
+                "end": 0.4,
+                "constraints": [
+                    {"type": "morph", "id": "hs_flat", "weight": 1.0, "side": "s"},
+                    {
+                        "type": "place",
+                        "site": "@PA(s)",
+                        "at": {"translate": "^ssp", "by": {"scale": "up", "by": 0.15}},
+                    },
+                    {
+                        "type": "orient",
+                        "bone": "!palm(s)",
+                        "axis": "nrm",
+                        "rel": "along",
+                        "vector": "fwd",
+                    },
+                    {
+                        "type": "orient",
+                        "bone": "!palm(s)",
+                        "axis": "dir",
+                        "rel": "along",
+                        "vector": "up",
+                    },
+                ],
+            }
+        ],
+    },
+}
 
 
 def raised_posture(model: mujoco.MjModel) -> np.ndarray:

@@ -46,8 +46,7 @@ class Param:
         return s
 
     def to_json(self) -> dict:
-        return {"name": self.name, "kind": self.kind, "default": self.default,
-                "list": self.list}  # fmt: skip
+        return {"name": self.name, "kind": self.kind, "default": self.default, "list": self.list}
 
 
 def fmt_value(v: Any) -> str:
@@ -87,8 +86,12 @@ class ScoreVal:
 
     def block(self, name: str, start: float) -> dict:
         """This value as a block named ``name`` over ``[start, start + duration]``."""
-        out = {"name": name, "kind": self.body["kind"], "start": start,
-               "end": start + self.duration}  # fmt: skip
+        out = {
+            "name": name,
+            "kind": self.body["kind"],
+            "start": start,
+            "end": start + self.duration,
+        }
         out.update({k: copy.deepcopy(v) for k, v in self.body.items() if k != "kind"})
         return out
 
@@ -117,18 +120,21 @@ class Timeline:
         """``OF_HOLD``-style hold of sibling ``of`` for ``d`` seconds (nothing when 0)."""
         start = self.t
         if d > 0:
-            self.children.append({"name": f"{of}_HOLD", "kind": "hold", "start": start,
-                                  "end": start + d, "of": of})  # fmt: skip
+            self.children.append(
+                {"name": f"{of}_HOLD", "kind": "hold", "start": start, "end": start + d, "of": of}
+            )
             self.t = start + d
         return start, self.t
 
     def cstr(self, name: str, start: float, end: float, constraints: list[dict]) -> None:
-        self.children.append({"name": name, "kind": "cstr", "start": start, "end": end,
-                              "constraints": constraints})  # fmt: skip
+        self.children.append(
+            {"name": name, "kind": "cstr", "start": start, "end": end, "constraints": constraints}
+        )
 
     def sync(self, name: str, start: float, end: float, children: list[dict]) -> None:
-        self.children.append({"name": name, "kind": "sync", "start": start, "end": end,
-                              "children": children})  # fmt: skip
+        self.children.append(
+            {"name": name, "kind": "sync", "start": start, "end": end, "children": children}
+        )
 
     def value(self, head: str, origin: str) -> ScoreVal:
         """The laid-out children as one ``sync`` value from 0 to the last end."""
@@ -149,14 +155,13 @@ def along(base: str, *terms: tuple[str, float]) -> dict:
 
 
 def head_along(vector: Any) -> dict:
-    """"head v": the head's NRM (its face direction) along ``v``."""
+    """ "head v": the head's NRM (its face direction) along ``v``."""
     return {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": vector}
 
 
 def lean_along(vector: Any) -> dict:
-    """"lean v": the upper back's DIR along ``v``."""
-    return {"type": "orient", "bone": "!back_2", "axis": "dir", "rel": "along",
-            "vector": vector}  # fmt: skip
+    """ "lean v": the upper back's DIR along ``v``."""
+    return {"type": "orient", "bone": "!back_2", "axis": "dir", "rel": "along", "vector": vector}
 
 
 def morph(mid: str, weight: float) -> dict:

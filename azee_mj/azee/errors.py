@@ -15,8 +15,15 @@ class ExpressionError(AzeeError):
     ``problem`` the message without its location.
     """
 
-    def __init__(self, problem: str, *, file: str = "<text>", line: int = 0, col: int = 0,
-                 path: str = "syntax"):  # fmt: skip
+    def __init__(
+        self,
+        problem: str,
+        *,
+        file: str = "<text>",
+        line: int = 0,
+        col: int = 0,
+        path: str = "syntax",
+    ):
         where = f"{file}:{line}:{col}" if line else file
         super().__init__(f"{where}: {path}: {problem}" if path else f"{where}: {problem}")
         self.problem = problem

@@ -75,21 +75,28 @@ class _Evaluator:
             return self.atom(node, path)
         here = f"{path}:{node.name}"
         if node.name.startswith("azop"):
-            raise self.err(f"low-level operators (:{node.name}) are not supported; write a "
-                           "rule or a sign (azee-mj rules lists all)", node.line, node.col,
-                           here)  # fmt: skip
+            raise self.err(
+                f"low-level operators (:{node.name}) are not supported; write a "
+                "rule or a sign (azee-mj rules lists all)",
+                node.line,
+                node.col,
+                here,
+            )
         self.depth += 1
         try:
             if self.depth > MAX_DEPTH:
-                raise self.err(f"nesting deeper than {MAX_DEPTH} levels", node.line, node.col,
-                               here)  # fmt: skip
+                raise self.err(f"nesting deeper than {MAX_DEPTH} levels", node.line, node.col, here)
             rule = BY_NAME.get(node.name)
             if rule is not None:
                 here = f"{path}:{rule.name}"
                 if not rule.implemented:
-                    raise self.err("not implemented: azee_mj has no manual alphabet; write "
-                                   "the word with signs of the lexicon",
-                                   node.line, node.col, here)  # fmt: skip
+                    raise self.err(
+                        "not implemented: azee_mj has no manual alphabet; write "
+                        "the word with signs of the lexicon",
+                        node.line,
+                        node.col,
+                        here,
+                    )
                 args, head, _ = self.bind(node, rule.params, f":{rule.name}", here)
                 saved, self.where = self.where, (node.line, node.col, here)
                 try:
@@ -100,15 +107,20 @@ class _Evaluator:
                 sign = self.lex.get(node.name)
                 saved, self.where = self.where, (node.line, node.col, here)
                 try:
-                    given, head, explicit = self.bind(node, sign.params, f":{sign.name}",
-                                                      here, keep_lits=True)  # fmt: skip
+                    given, head, explicit = self.bind(
+                        node, sign.params, f":{sign.name}", here, keep_lits=True
+                    )
                     return self.apply_sign(sign, given, head, explicit)
                 finally:
                     self.where = saved
             m = _close(node.name, [*BY_NAME, *self.lex.names()])
             hint = f"; did you mean ':{m}'?" if m else ""
-            raise self.err(f"unknown rule or sign ':{node.name}'{hint} (azee-mj rules lists "
-                           "all)", node.line, node.col, here)  # fmt: skip
+            raise self.err(
+                f"unknown rule or sign ':{node.name}'{hint} (azee-mj rules lists all)",
+                node.line,
+                node.col,
+                here,
+            )
         finally:
             self.depth -= 1
 
@@ -117,19 +129,28 @@ class _Evaluator:
             if node.text not in LOCI:
                 m = _close(node.text, LOCI)
                 hint = f"; did you mean '^{m}'? Valid" if m else "; valid"
-                raise self.err(f"unknown locus '^{node.text}'{hint} loci are ^ssp, ^Rssp, "
-                               "^Lssp", node.line, node.col, path or "syntax")  # fmt: skip
+                raise self.err(
+                    f"unknown locus '^{node.text}'{hint} loci are ^ssp, ^Rssp, ^Lssp",
+                    node.line,
+                    node.col,
+                    path or "syntax",
+                )
             return Lit("locus", f"^{node.text}", f"^{node.text}")
         if node.kind == "atom":
             if node.text not in DIGITS:
-                raise self.err(f"unknown atom '.{node.text}'; atoms are .nb-0 to .nb-9",
-                               node.line, node.col, path or "syntax")  # fmt: skip
+                raise self.err(
+                    f"unknown atom '.{node.text}'; atoms are .nb-0 to .nb-9",
+                    node.line,
+                    node.col,
+                    path or "syntax",
+                )
             return Lit("digit", int(node.text[3:]), f".{node.text}")
         return Lit("num", node.value, fmt_value(node.value))
 
     # -- arguments ------------------------------------------------------------------------
-    def bind(self, node: App, params: tuple[Param, ...], callee: str, here: str,
-             keep_lits: bool = False) -> tuple[dict[str, Any], str, set[str]]:  # fmt: skip
+    def bind(
+        self, node: App, params: tuple[Param, ...], callee: str, here: str, keep_lits: bool = False
+    ) -> tuple[dict[str, Any], str, set[str]]:
         """Bind ``node``'s arguments to ``params``; returns (name -> value, canonical text,
         the names given explicitly).
         List parameters get lists; numbers are floats (or :class:`Lit` with ``keep_lits``),
@@ -144,15 +165,20 @@ class _Evaluator:
         for a in node.args:
             if a.label is None:
                 if seen_label:
-                    raise self.err("a positional argument after a labelled one; positional "
-                                   "arguments come first, in parameter order", a.line, a.col,
-                                   here)  # fmt: skip
+                    raise self.err(
+                        "a positional argument after a labelled one; positional "
+                        "arguments come first, in parameter order",
+                        a.line,
+                        a.col,
+                        here,
+                    )
                 if current is None or not current.list:
                     current = next(positional, None)
                 if current is None:
                     n = len(node.args)
-                    raise self.err(f"too many arguments for {callee} ({n} given); {takes}",
-                                   a.line, a.col, here)  # fmt: skip
+                    raise self.err(
+                        f"too many arguments for {callee} ({n} given); {takes}", a.line, a.col, here
+                    )
                 assigned.setdefault(current.name, []).append(a)
                 continue
             seen_label = True
@@ -160,11 +186,13 @@ class _Evaluator:
             if p is None:
                 m = _close(a.label, list(by_name))
                 tail = f"; did you mean '{m}? It takes {sig}" if m else f"; {takes}"
-                raise self.err(f"unknown argument '{a.label} for {callee}{tail}",
-                               a.line, a.col, here)  # fmt: skip
+                raise self.err(
+                    f"unknown argument '{a.label} for {callee}{tail}", a.line, a.col, here
+                )
             if p.name in assigned and not p.list:
-                raise self.err(f"repeated argument '{p.name} for {callee}; {takes}", a.line,
-                               a.col, here)  # fmt: skip
+                raise self.err(
+                    f"repeated argument '{p.name} for {callee}; {takes}", a.line, a.col, here
+                )
             assigned.setdefault(p.name, []).append(a)
         out: dict[str, Any] = {}
         parts: list[str] = []
@@ -172,20 +200,32 @@ class _Evaluator:
             given = assigned.get(p.name)
             if not given:
                 if p.default is None:
-                    raise self.err(f"missing argument '{p.name} for {callee}; {takes}",
-                                   node.line, node.col, here)  # fmt: skip
+                    raise self.err(
+                        f"missing argument '{p.name} for {callee}; {takes}",
+                        node.line,
+                        node.col,
+                        here,
+                    )
                 out[p.name] = self.default(p, keep_lits)
                 continue
             if p.list and len(given) < p.min_items:
                 a = given[-1]
-                raise self.err(f"'{p.name}: expected at least {p.min_items} items, got "
-                               f"{len(given)}; {takes}", a.line, a.col, here)  # fmt: skip
+                raise self.err(
+                    f"'{p.name}: expected at least {p.min_items} items, got {len(given)}; {takes}",
+                    a.line,
+                    a.col,
+                    here,
+                )
             vals = []
             for a in given:
                 kind = _kind_of(a.value)
                 if kind != p.kind:
-                    raise self.err(f"'{p.name}: expected {KINDS[p.kind]}, got "
-                                   f"{_describe(a.value)}", a.value.line, a.value.col, here)
+                    raise self.err(
+                        f"'{p.name}: expected {KINDS[p.kind]}, got {_describe(a.value)}",
+                        a.value.line,
+                        a.value.col,
+                        here,
+                    )
                 v = self.value(a.value, f"{here}'{p.name}")
                 if p.kind == "num":
                     self.check_num(p, v, a.value, here)
@@ -199,8 +239,11 @@ class _Evaluator:
 
     def default(self, p: Param, keep_lits: bool) -> Any:
         if p.kind == "num":
-            return Lit("num", float(p.default), fmt_value(p.default)) if keep_lits else float(
-                p.default)
+            return (
+                Lit("num", float(p.default), fmt_value(p.default))
+                if keep_lits
+                else float(p.default)
+            )
         return Lit(p.kind, p.default, fmt_value(p.default))
 
     def check_num(self, p: Param, v: Lit, node: Node, here: str) -> None:
@@ -208,12 +251,17 @@ class _Evaluator:
             return
         if v.value < p.minimum or (p.strict and v.value == p.minimum):
             op = ">" if p.strict else ">="
-            raise self.err(f"'{p.name}: expected a number {op} {fmt_value(p.minimum)}, got "
-                           f"{v.text}", node.line, node.col, here)  # fmt: skip
+            raise self.err(
+                f"'{p.name}: expected a number {op} {fmt_value(p.minimum)}, got {v.text}",
+                node.line,
+                node.col,
+                here,
+            )
 
     # -- signs ------------------------------------------------------------------------------
-    def apply_sign(self, sign: Sign, given: Mapping[str, Lit], head: str,
-                   explicit: Iterable[str] = ()) -> ScoreVal:  # fmt: skip
+    def apply_sign(
+        self, sign: Sign, given: Mapping[str, Lit], head: str, explicit: Iterable[str] = ()
+    ) -> ScoreVal:
         """The sign with every parameter in ``given``; ``explicit`` names those the
         expression filled (a rule may fill the others)."""
         line, col, here = self.where
@@ -227,11 +275,22 @@ class _Evaluator:
                 root = fill(sign.template, values, (p.name for p in sign.params))
             except KeyError as e:
                 declared = ", ".join(f"'{p.name}" for p in sign.params) or "none"
-                raise self.err(f"lexicon :{sign.name}: \"${e.args[0]}\" is not a declared "
-                               f"parameter; declared: {declared}", line, col, here) from None
+                raise self.err(
+                    f'lexicon :{sign.name}: "${e.args[0]}" is not a declared '
+                    f"parameter; declared: {declared}",
+                    line,
+                    col,
+                    here,
+                ) from None
             try:
-                load_score({"format": "azee-score", "version": 1, "strong_side": self.strong,
-                            "root": {**root, "name": block_name(sign.name)}})  # fmt: skip
+                load_score(
+                    {
+                        "format": "azee-score",
+                        "version": 1,
+                        "strong_side": self.strong,
+                        "root": {**root, "name": block_name(sign.name)},
+                    }
+                )
             except ScoreError as e:
                 raise self.err(f"lexicon :{sign.name}: {e}", line, col, here) from None
             body = {k: v for k, v in root.items() if k not in ("name", "start", "end")}
@@ -243,8 +302,9 @@ class _Evaluator:
     def expression_sign(self, sign: Sign, head: str) -> ScoreVal:
         line, col, here = self.where
         if sign.name in self.signs:
-            chain = " -> ".join(f":{s}" for s in [*self.signs[self.signs.index(sign.name):],
-                                                   sign.name])  # fmt: skip
+            chain = " -> ".join(
+                f":{s}" for s in [*self.signs[self.signs.index(sign.name) :], sign.name]
+            )
             raise self.err(f"lexicon cycle {chain}", line, col, here)
         self.signs.append(sign.name)
         saved_file, self.file = self.file, str(sign.path)
@@ -255,8 +315,12 @@ class _Evaluator:
             self.file = saved_file
             self.signs.pop()
         if not isinstance(val, ScoreVal):
-            raise self.err(f"lexicon :{sign.name}: the expression is a {val.kind}, not a score",
-                           line, col, here)  # fmt: skip
+            raise self.err(
+                f"lexicon :{sign.name}: the expression is a {val.kind}, not a score",
+                line,
+                col,
+                here,
+            )
         return ScoreVal(head, val.origin, val.duration, val.body, sign, {})
 
     # -- for rules ----------------------------------------------------------------------------
@@ -264,16 +328,16 @@ class _Evaluator:
         """The sign ``name`` with ``params`` (the others at their defaults)."""
         line, col, here = self.where
         if name not in self.lex:
-            raise self.err(f"this rule needs the sign :{name}, which the lexicon lacks",
-                           line, col, here)  # fmt: skip
+            raise self.err(
+                f"this rule needs the sign :{name}, which the lexicon lacks", line, col, here
+            )
         sign = self.lex.get(name)
         given = {}
         for p in sign.params:
             if p.name in params:
                 given[p.name] = params[p.name]
             elif p.default is None:
-                raise self.err(f"this rule needs :{name} to default its '{p.name}", line, col,
-                               here)  # fmt: skip
+                raise self.err(f"this rule needs :{name} to default its '{p.name}", line, col, here)
             else:
                 given[p.name] = self.default(p, True)
         parts = [f"'{k} {v.text}" for k, v in params.items()]
@@ -285,8 +349,9 @@ class _Evaluator:
         it, or, when it has none, ``SIG`` then ``POINT`` = ``:ix('loc locus)``."""
         tl = Timeline()
         sign: Sign | None = val.sign
-        has_loc = sign is not None and any(p.name == "loc" and p.kind == "locus"
-                                           for p in sign.params)  # fmt: skip
+        has_loc = sign is not None and any(
+            p.name == "loc" and p.kind == "locus" for p in sign.params
+        )
         if has_loc and "loc" not in val.given:
             given = {p.name: val.given.get(p.name) or self.default(p, True) for p in sign.params}
             given["loc"] = locus
@@ -311,27 +376,44 @@ def _round_times(block: dict) -> dict:
     return block
 
 
-def compile_node(node: Node, *, strong_side: str = "R", lexicon: Lexicon | None = None,
-                 file: str = "<text>") -> dict:  # fmt: skip
+def compile_node(
+    node: Node, *, strong_side: str = "R", lexicon: Lexicon | None = None, file: str = "<text>"
+) -> dict:
     """The score dict of a parsed expression (see :func:`compile_text`)."""
     if strong_side not in ("R", "L"):
-        raise ExpressionError(f"strong side must be R or L, got {strong_side!r}", file=file,
-                              path="")  # fmt: skip
+        raise ExpressionError(
+            f"strong side must be R or L, got {strong_side!r}", file=file, path=""
+        )
     ev = _Evaluator(lexicon or Lexicon(), strong_side, file)
     val = ev.value(node, "")
     if not isinstance(val, ScoreVal):
-        raise ExpressionError(f"the expression is a {val.kind}, not a score; a file holds one "
-                              ":rule or :sign application", file=file, line=node.line,
-                              col=node.col, path=val.text)  # fmt: skip
+        raise ExpressionError(
+            f"the expression is a {val.kind}, not a score; a file holds one "
+            ":rule or :sign application",
+            file=file,
+            line=node.line,
+            col=node.col,
+            path=val.text,
+        )
     name = node.name
     rule = BY_NAME.get(name)
     root = _round_times(val.block(block_name(rule.name if rule else name), 0.0))
-    return {"format": "azee-score", "version": 1, "strong_side": strong_side,
-            "x-source": val.head, "root": root}  # fmt: skip
+    return {
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": strong_side,
+        "x-source": val.head,
+        "root": root,
+    }
 
 
-def compile_text(text: str, strong_side: str = "R", lexicon: Iterable[str | Path] | Lexicon = (),
-                 *, file: str = "<text>") -> dict:  # fmt: skip
+def compile_text(
+    text: str,
+    strong_side: str = "R",
+    lexicon: Iterable[str | Path] | Lexicon = (),
+    *,
+    file: str = "<text>",
+) -> dict:
     """Compile one ``.azee`` expression to an ``azee-score`` v1 dict.
 
     Args:
@@ -348,24 +430,32 @@ def compile_text(text: str, strong_side: str = "R", lexicon: Iterable[str | Path
     return compile_node(parse(text, file), strong_side=strong_side, lexicon=lex, file=file)
 
 
-def compile_score(text: str, strong_side: str = "R",
-                  lexicon: Iterable[str | Path] | Lexicon = (), *, file: str = "<text>"):  # fmt: skip
+def compile_score(
+    text: str,
+    strong_side: str = "R",
+    lexicon: Iterable[str | Path] | Lexicon = (),
+    *,
+    file: str = "<text>",
+):
     """:func:`compile_text`, loaded as a :class:`azee_mj.score.Score` record."""
     return load_score(compile_text(text, strong_side, lexicon, file=file))
 
 
-def compile_file(path: str | Path, strong_side: str = "R",
-                 lexicon: Iterable[str | Path] | Lexicon = ()) -> dict:  # fmt: skip
+def compile_file(
+    path: str | Path, strong_side: str = "R", lexicon: Iterable[str | Path] | Lexicon = ()
+) -> dict:
     """Compile the ``.azee`` file at ``path`` (see :func:`compile_text`)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
-        raise ExpressionError(f"cannot read the expression: {e.strerror or e}", file=str(path),
-                              path="") from None  # fmt: skip
+        raise ExpressionError(
+            f"cannot read the expression: {e.strerror or e}", file=str(path), path=""
+        ) from None
     except UnicodeDecodeError as e:
-        raise ExpressionError(f"not a UTF-8 text file: {e.reason}", file=str(path),
-                              path="") from None  # fmt: skip
+        raise ExpressionError(
+            f"not a UTF-8 text file: {e.reason}", file=str(path), path=""
+        ) from None
     return compile_text(text, strong_side, lexicon, file=str(path))
 
 
@@ -375,8 +465,15 @@ def rules_catalogue(lexicon: Lexicon | None = None) -> dict:
     signs = []
     for n in lex.names():
         s = lex.get(n)
-        signs.append({"name": n, "params": [p.to_json() for p in s.params],
-                      "duration": s.duration, "summary": s.summary,
-                      "file": s.path.name if s.path.parent == Path(__file__).parent / "lexicon"
-                      else str(s.path)})  # fmt: skip
+        signs.append(
+            {
+                "name": n,
+                "params": [p.to_json() for p in s.params],
+                "duration": s.duration,
+                "summary": s.summary,
+                "file": s.path.name
+                if s.path.parent == Path(__file__).parent / "lexicon"
+                else str(s.path),
+            }
+        )
     return {"rules": [r.to_json() for r in RULES], "signs": signs}

@@ -58,14 +58,14 @@ class Lexicon:
         self._files: dict[str, Path] = {}
         for d in (*self.dirs, BUNDLED):
             if not d.is_dir():
-                raise ExpressionError("not a directory of signs (--lexicon)", file=str(d),
-                                      path="")  # fmt: skip
+                raise ExpressionError("not a directory of signs (--lexicon)", file=str(d), path="")
             for p in sorted(d.iterdir()):
                 if p.suffix not in (".json", ".azee") or p.stem in self._files:
                     continue
                 if p.stem in BY_NAME:
-                    raise _fail(p, f"a sign may not be named like the rule :{p.stem}; "
-                                   "rename the file")  # fmt: skip
+                    raise _fail(
+                        p, f"a sign may not be named like the rule :{p.stem}; rename the file"
+                    )
                 self._files[p.stem] = p
         self._cache: dict[str, Sign] = {}
 
@@ -94,8 +94,9 @@ def read_sign(name: str, path: Path) -> Sign:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as e:
-        raise _fail(path, f"lexicon :{name}: line {e.lineno} column {e.colno}: invalid "
-                          f"JSON: {e.msg}") from None  # fmt: skip
+        raise _fail(
+            path, f"lexicon :{name}: line {e.lineno} column {e.colno}: invalid JSON: {e.msg}"
+        ) from None
     if not isinstance(data, dict) or not isinstance(data.get("root"), dict):
         raise _fail(path, f"lexicon :{name}: expected an azee-score object with a 'root' block")
     root = data["root"]
@@ -103,14 +104,20 @@ def read_sign(name: str, path: Path) -> Sign:
         raise _fail(path, f"lexicon :{name}: the root block needs numeric 'start' and 'end'")
     raw = data.get("x-params", {})
     if not isinstance(raw, dict):
-        raise _fail(path, f"lexicon :{name}: 'x-params' must be an object of name -> "
-                          "{\"kind\": ..., \"default\": ...}")  # fmt: skip
+        raise _fail(
+            path,
+            f"lexicon :{name}: 'x-params' must be an object of name -> "
+            '{"kind": ..., "default": ...}',
+        )
     params = []
     for p, spec in raw.items():
         kind = spec.get("kind") if isinstance(spec, dict) else None
         if kind not in PARAM_KINDS:
-            raise _fail(path, f"lexicon :{name}: parameter '{p}: kind must be one of "
-                              f"{', '.join(PARAM_KINDS)}, got {kind!r}")  # fmt: skip
+            raise _fail(
+                path,
+                f"lexicon :{name}: parameter '{p}: kind must be one of "
+                f"{', '.join(PARAM_KINDS)}, got {kind!r}",
+            )
         params.append(Param(p, kind, spec.get("default")))
     summary = data.get("x-summary") or data.get("x-source", "")
     return Sign(name, path, tuple(params), root, summary=str(summary))

@@ -60,10 +60,15 @@ class Rule:
 
     def to_json(self) -> dict:
         """The rule as ``azee-mj rules --json`` lists it."""
-        return {"name": self.name, "aliases": list(self.aliases),
-                "args": [p.to_json() for p in self.params], "summary": self.summary,
-                "source": self.source, "approximated": self.approximated,
-                "implemented": self.implemented}  # fmt: skip
+        return {
+            "name": self.name,
+            "aliases": list(self.aliases),
+            "args": [p.to_json() for p in self.params],
+            "summary": self.summary,
+            "source": self.source,
+            "approximated": self.approximated,
+            "implemented": self.implemented,
+        }
 
 
 def _seq(ctx: Context, a: dict, head: str) -> ScoreVal:
@@ -176,57 +181,116 @@ def _score(name: str) -> Param:
 
 _GE0 = {"minimum": 0.0}
 RULES: tuple[Rule, ...] = (
-    Rule("seq", (Param("item", "score", list=True), Param("gap", "num", 0.0, **_GE0)),
-         "the items in sequence, each starting 'gap seconds after the previous one ends",
-         "ours", "nothing: it only offsets its items", _seq),
-    Rule("info-about", (_score("topic"), _score("info"), Param("hold", "num", 0.3, **_GE0)),
-         "TOPIC, TOPIC_HOLD, INFO in sequence; BROWS (brows_raise 0.8) over the first two; "
-         "BLINK over [end-0.4, end-0.2] unless INFO is shorter than 0.4 s or an info-about",
-         "sequence and blink [N18 sec. 5.2]; blocks [SF23; T ch. 4]",
-         "brow weight guessed; the thesis's final HOLD2 is dropped (the last posture holds "
-         "anyway)", _info_about),
-    Rule("side-info", (_score("focus"), _score("info")),
-         "FOCUS, FOCUS_HOLD 0.2 s, INFO; over INFO, CHIN (head fwd+0.2 up) and LIFT "
-         "(spine_extended 0.5)", "template [T ch. 5]",
-         "block names, hold, head and spine amounts guessed", _side_info),
-    Rule("about-ref", (_score("sig"), Param("pt", "locus"), Param("lean", "num", 0.15)),
-         "REF = the sign localised at 'pt (its loc set and a look at it, or a pointing "
-         "after it); LEAN (back toward the point) over it",
-         "body and head toward the point [T ch. 5]; gaze and lean [G23]",
-         "pointing guessed; G23's chin-up dropped (it fights the look)", _about_ref),
-    Rule("instance-of", (_score("cat"), _score("elt")),
-         "CAT, CAT_HOLD 0.2 s, ELT; over the first two BACK (lean up+0.1 back) and CHIN "
-         "(head fwd+0.1 up)", "template [T ch. 5]; names [G23]",
-         "order and amounts guessed", _instance_of),
-    Rule("in-context", (_score("ctx"), _score("main")),
-         "CTX, CTX_HOLD 0.2 s, MAIN; LEAN (up+0.1 fwd) over the first two",
-         "[T ch. 5]: 'body preparing to sign'", "hold and lean amount guessed", _in_context),
-    Rule("each-of", (Param("item", "score", list=True, min_items=2),),
-         "each ITEM_k then ITEM_k_HOLD 0.15 s with NOD_k (head fwd+0.2 down)", "ours",
-         "all of it guessed", _each_of),
-    Rule("side-by-side", (_score("left"), _score("right")),
-         "LEFT = left localised at ^Lssp, then RIGHT = right localised at ^Rssp", "ours",
-         "all of it guessed", _side_by_side),
-    Rule("nicht-sondern", (_score("nicht"), _score("sondern"),
-                           Param("neghold", "num", 0.8, minimum=0.0, strict=True)),
-         "NEGATED (NICHT, NICHT_HOLD and a HEADSHAKE over the hold: head turns every 0.2 s "
-         "and a deep gaze), then SONDERN",
-         "[N18 sec. 3.1]: 'headshake and deep gaze over a manual hold of X'; [SF22 fig. 1, 5]",
-         "the headshake as alternating head orientations (0.22 lateral) rather than a trill; "
-         "the gaze point and the timings guessed", _nicht_sondern, aliases=("not-but",)),
-    Rule("tens-units", (Param("tens", "digit"), Param("units", "digit"),
-                        Param("gap", "num", 0.15, **_GE0)),
-         "D = :nb-<tens>, then U = :nb-<units> after 'gap seconds",
-         "order from the 'person aged 52' timeline [T]",
-         "digit handshapes and the gap guessed", _tens_units),
-    Rule("decidedly", (_score("sig"),),
-         "SIG with FACE (brows_frown 0.5, mouth_down 0.4) over it and NOD (head fwd+0.25 "
-         "down) over its last 0.25 s", "listed in [T annex]", "face and nod guessed",
-         _decidedly),
-    Rule("fingerspelling", (Param("word", "score"),),
-         "not implemented: azee_mj has no manual alphabet", "[T annex]",
-         "not implemented", None, implemented=False),
-)  # fmt: skip
+    Rule(
+        "seq",
+        (Param("item", "score", list=True), Param("gap", "num", 0.0, **_GE0)),
+        "the items in sequence, each starting 'gap seconds after the previous one ends",
+        "ours",
+        "nothing: it only offsets its items",
+        _seq,
+    ),
+    Rule(
+        "info-about",
+        (_score("topic"), _score("info"), Param("hold", "num", 0.3, **_GE0)),
+        "TOPIC, TOPIC_HOLD, INFO in sequence; BROWS (brows_raise 0.8) over the first two; "
+        "BLINK over [end-0.4, end-0.2] unless INFO is shorter than 0.4 s or an info-about",
+        "sequence and blink [N18 sec. 5.2]; blocks [SF23; T ch. 4]",
+        "brow weight guessed; the thesis's final HOLD2 is dropped (the last posture holds anyway)",
+        _info_about,
+    ),
+    Rule(
+        "side-info",
+        (_score("focus"), _score("info")),
+        "FOCUS, FOCUS_HOLD 0.2 s, INFO; over INFO, CHIN (head fwd+0.2 up) and LIFT "
+        "(spine_extended 0.5)",
+        "template [T ch. 5]",
+        "block names, hold, head and spine amounts guessed",
+        _side_info,
+    ),
+    Rule(
+        "about-ref",
+        (_score("sig"), Param("pt", "locus"), Param("lean", "num", 0.15)),
+        "REF = the sign localised at 'pt (its loc set and a look at it, or a pointing "
+        "after it); LEAN (back toward the point) over it",
+        "body and head toward the point [T ch. 5]; gaze and lean [G23]",
+        "pointing guessed; G23's chin-up dropped (it fights the look)",
+        _about_ref,
+    ),
+    Rule(
+        "instance-of",
+        (_score("cat"), _score("elt")),
+        "CAT, CAT_HOLD 0.2 s, ELT; over the first two BACK (lean up+0.1 back) and CHIN "
+        "(head fwd+0.1 up)",
+        "template [T ch. 5]; names [G23]",
+        "order and amounts guessed",
+        _instance_of,
+    ),
+    Rule(
+        "in-context",
+        (_score("ctx"), _score("main")),
+        "CTX, CTX_HOLD 0.2 s, MAIN; LEAN (up+0.1 fwd) over the first two",
+        "[T ch. 5]: 'body preparing to sign'",
+        "hold and lean amount guessed",
+        _in_context,
+    ),
+    Rule(
+        "each-of",
+        (Param("item", "score", list=True, min_items=2),),
+        "each ITEM_k then ITEM_k_HOLD 0.15 s with NOD_k (head fwd+0.2 down)",
+        "ours",
+        "all of it guessed",
+        _each_of,
+    ),
+    Rule(
+        "side-by-side",
+        (_score("left"), _score("right")),
+        "LEFT = left localised at ^Lssp, then RIGHT = right localised at ^Rssp",
+        "ours",
+        "all of it guessed",
+        _side_by_side,
+    ),
+    Rule(
+        "nicht-sondern",
+        (
+            _score("nicht"),
+            _score("sondern"),
+            Param("neghold", "num", 0.8, minimum=0.0, strict=True),
+        ),
+        "NEGATED (NICHT, NICHT_HOLD and a HEADSHAKE over the hold: head turns every 0.2 s "
+        "and a deep gaze), then SONDERN",
+        "[N18 sec. 3.1]: 'headshake and deep gaze over a manual hold of X'; [SF22 fig. 1, 5]",
+        "the headshake as alternating head orientations (0.22 lateral) rather than a trill; "
+        "the gaze point and the timings guessed",
+        _nicht_sondern,
+        aliases=("not-but",),
+    ),
+    Rule(
+        "tens-units",
+        (Param("tens", "digit"), Param("units", "digit"), Param("gap", "num", 0.15, **_GE0)),
+        "D = :nb-<tens>, then U = :nb-<units> after 'gap seconds",
+        "order from the 'person aged 52' timeline [T]",
+        "digit handshapes and the gap guessed",
+        _tens_units,
+    ),
+    Rule(
+        "decidedly",
+        (_score("sig"),),
+        "SIG with FACE (brows_frown 0.5, mouth_down 0.4) over it and NOD (head fwd+0.25 "
+        "down) over its last 0.25 s",
+        "listed in [T annex]",
+        "face and nod guessed",
+        _decidedly,
+    ),
+    Rule(
+        "fingerspelling",
+        (Param("word", "score"),),
+        "not implemented: azee_mj has no manual alphabet",
+        "[T annex]",
+        "not implemented",
+        None,
+        implemented=False,
+    ),
+)
 
 #: Rule name or alias -> rule.
 BY_NAME: dict[str, Rule] = {n: r for r in RULES for n in (r.name, *r.aliases)}

@@ -70,8 +70,16 @@ class _Tok:
 
 _NUM = re.compile(r"-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
 _SIGILS = {":": "app", "^": "locus", ".": "atom", "'": "label"}
-_WHAT = {"app": "an application", "locus": "a locus", "atom": "an atom", "num": "a number",
-         "label": "a label", "(": "'('", ")": "')'", ",": "','"}  # fmt: skip
+_WHAT = {
+    "app": "an application",
+    "locus": "a locus",
+    "atom": "an atom",
+    "num": "a number",
+    "label": "a label",
+    "(": "'('",
+    ")": "')'",
+    ",": "','",
+}
 
 
 def _ident_end(s: str, i: int) -> int:
@@ -114,8 +122,9 @@ class _Parser:
                 elif c in _SIGILS:
                     j = _ident_end(s, i + 1)
                     if j == i + 1:
-                        raise self.err(f"expected a name after {c!r}; a name starts with a "
-                                       "letter", ln, col)  # fmt: skip
+                        raise self.err(
+                            f"expected a name after {c!r}; a name starts with a letter", ln, col
+                        )
                     out.append(_Tok(_SIGILS[c], s[i + 1 : j], ln, col, first))
                     i = j
                 elif c == "?":
@@ -124,8 +133,12 @@ class _Parser:
                     out.append(_Tok("num", m.group(), ln, col, first))
                     i = m.end()
                 else:
-                    raise self.err(f"unexpected character {c!r}; an expression starts with "
-                                   ":name, ^locus, .atom, 'label or a number", ln, col)  # fmt: skip
+                    raise self.err(
+                        f"unexpected character {c!r}; an expression starts with "
+                        ":name, ^locus, .atom, 'label or a number",
+                        ln,
+                        col,
+                    )
                 first = False
         return out
 
@@ -175,8 +188,9 @@ class _Parser:
             return args, i + 1
         while True:
             if i >= len(toks):
-                raise self.err("unbalanced parentheses: '(' is never closed", opener.line,
-                               opener.col)  # fmt: skip
+                raise self.err(
+                    "unbalanced parentheses: '(' is never closed", opener.line, opener.col
+                )
             t = toks[i]
             label = None
             if t.kind == "label":
@@ -191,8 +205,9 @@ class _Parser:
             if i < len(toks) and toks[i].kind == ")":
                 return args, i + 1
             if i >= len(toks):
-                raise self.err("unbalanced parentheses: '(' is never closed", opener.line,
-                               opener.col)  # fmt: skip
+                raise self.err(
+                    "unbalanced parentheses: '(' is never closed", opener.line, opener.col
+                )
             u = toks[i]
             raise self.err(f"expected ',' or ')', got {_WHAT[u.kind]}", u.line, u.col)
 
@@ -210,8 +225,12 @@ class _Parser:
                 node, j = self.expr(group, k)
                 if j < len(group):
                     u = group[j]
-                    raise self.err("a second expression on one line; put each argument on "
-                                   "its own line or inside parentheses", u.line, u.col)  # fmt: skip
+                    raise self.err(
+                        "a second expression on one line; put each argument on "
+                        "its own line or inside parentheses",
+                        u.line,
+                        u.col,
+                    )
             self.ls.append((head.col - 1, label, node, head))
         _, label, _, head = self.ls[0]
         if label is not None:
@@ -219,8 +238,12 @@ class _Parser:
         node, nxt = self.value(0)
         if nxt < len(self.ls):
             h = self.ls[nxt][3]
-            raise self.err("a second expression; a file holds one expression (arguments "
-                           "are indented deeper than their application)", h.line, h.col)
+            raise self.err(
+                "a second expression; a file holds one expression (arguments "
+                "are indented deeper than their application)",
+                h.line,
+                h.col,
+            )
         return node
 
     def value(self, i: int) -> tuple[Node, int]:
@@ -233,11 +256,17 @@ class _Parser:
             return node, end
         h = self.ls[i + 1][3]
         if not isinstance(node, App):
-            raise self.err(f"{_WHAT[node.kind]} takes no arguments; this line is indented "
-                           "deeper than it", h.line, h.col)  # fmt: skip
+            raise self.err(
+                f"{_WHAT[node.kind]} takes no arguments; this line is indented deeper than it",
+                h.line,
+                h.col,
+            )
         if node.parens:
-            raise self.err(f"arguments of :{node.name} go in parentheses or in layout, never "
-                           "both", h.line, h.col)  # fmt: skip
+            raise self.err(
+                f"arguments of :{node.name} go in parentheses or in layout, never both",
+                h.line,
+                h.col,
+            )
         args = self.layout_args(i + 1, end)
         return dataclasses.replace(node, args=tuple(args)), end
 
@@ -247,12 +276,20 @@ class _Parser:
         while i < end:
             indent, label, node, head = self.ls[i]
             if indent != col:
-                raise self.err(f"bad indent: this argument starts at column {indent + 1}, the "
-                               f"one before at column {col + 1}", head.line, head.col)  # fmt: skip
+                raise self.err(
+                    f"bad indent: this argument starts at column {indent + 1}, the "
+                    f"one before at column {col + 1}",
+                    head.line,
+                    head.col,
+                )
             if label is not None and node is None:
                 if i + 1 >= end or self.ls[i + 1][0] < indent or self.ls[i + 1][2] is None:
-                    raise self.err(f"label '{label.text} without a value; put it on the next "
-                                   "line, at least as deep as the label", head.line, head.col)
+                    raise self.err(
+                        f"label '{label.text} without a value; put it on the next "
+                        "line, at least as deep as the label",
+                        head.line,
+                        head.col,
+                    )
                 value, i = self.value(i + 1)
             else:
                 value, i = self.value(i)

@@ -35,14 +35,25 @@ from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timing import check_fps
 
 #: Output suffix -> format name.
-FORMATS = {".glb": "glb", ".gltf": "gltf", ".bvh": "bvh", ".pose": "pose", ".csv": "csv",
-           ".html": "html"}  # fmt: skip
+FORMATS = {
+    ".glb": "glb",
+    ".gltf": "gltf",
+    ".bvh": "bvh",
+    ".pose": "pose",
+    ".csv": "csv",
+    ".html": "html",
+}
 
 __all__ = ["FORMATS", "MissingExtraError", "Motion", "export", "load_motion", "write"]
 
 
-def load_motion(path: str | os.PathLike, *, score: str | os.PathLike | None = None,
-                fps: float = 50.0, model: mujoco.MjModel | None = None) -> Motion:
+def load_motion(
+    path: str | os.PathLike,
+    *,
+    score: str | os.PathLike | None = None,
+    fps: float = 50.0,
+    model: mujoco.MjModel | None = None,
+) -> Motion:
     """The motion of ``SCORE.json`` (realized at ``fps``) or of ``ROLLOUT.npz`` (checked
     against ``model``, the bundled signer by default; its schedule is the one stored in the
     rollout, or that of ``score`` when given).
@@ -64,20 +75,29 @@ def load_motion(path: str | os.PathLike, *, score: str | os.PathLike | None = No
         r = timeline.realize(s, fps=fps)
         return Motion(r.qpos, float(r.fps), schedule_tuples(r.schedule), path.stem)
     if suffix != ".npz":
-        raise InputFileError(f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix "
-                             f"{path.suffix!r}")  # fmt: skip
+        raise InputFileError(
+            f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix {path.suffix!r}"
+        )
     r = load_rollout(path, model.nq)
     if bundled and list(r.site_names) != list(DEFAULT_MAP.sites):
-        raise InputFileError(f"{path}: not a rollout of this signer: its site_names are not "
-                             f"the catalogue's {len(DEFAULT_MAP.sites)} AZee sites")
+        raise InputFileError(
+            f"{path}: not a rollout of this signer: its site_names are not "
+            f"the catalogue's {len(DEFAULT_MAP.sites)} AZee sites"
+        )
     sched = r.schedule
     if score is not None:
         sched = schedule(sc.load_score(Path(score)))
     return Motion(np.asarray(r.qpos, float), float(r.fps), schedule_tuples(sched), path.stem)
 
 
-def write(output: str | os.PathLike, motion: Motion, *, model: mujoco.MjModel | None = None,
-          signer_map: SignerMap = DEFAULT_MAP, inputs=()) -> Path:
+def write(
+    output: str | os.PathLike,
+    motion: Motion,
+    *,
+    model: mujoco.MjModel | None = None,
+    signer_map: SignerMap = DEFAULT_MAP,
+    inputs=(),
+) -> Path:
     """Write ``motion`` to ``output`` in the format its suffix names (:data:`FORMATS`),
     atomically, by the output rule of :mod:`azee_mj.files` (``inputs``: files it may not
     replace). Returns the output path."""
@@ -100,8 +120,10 @@ def format_of(output: str | os.PathLike) -> str:
     """The format name of an output path; :class:`AzeeError` for an unknown suffix."""
     suffix = Path(output).suffix.lower()
     if suffix not in FORMATS:
-        raise AzeeError(f"{output}: unknown export suffix {Path(output).suffix!r}; use one of "
-                        f"{', '.join(FORMATS)}")  # fmt: skip
+        raise AzeeError(
+            f"{output}: unknown export suffix {Path(output).suffix!r}; use one of "
+            f"{', '.join(FORMATS)}"
+        )
     return FORMATS[suffix]
 
 
@@ -132,13 +154,20 @@ def _writer(fmt: str):
         return lambda p, m, mot, smap: write_csv(p, m, mot.qpos, mot.fps, signer_map=smap)
     from azee_mj.export.player import write_player
 
-    return lambda p, m, mot, smap: write_player(p, m, mot.qpos, mot.fps, mot.schedule,
-                                                mot.name or "azee_mj")  # fmt: skip
+    return lambda p, m, mot, smap: write_player(
+        p, m, mot.qpos, mot.fps, mot.schedule, mot.name or "azee_mj"
+    )
 
 
-def export(source, output: str | os.PathLike, *, score: str | os.PathLike | None = None,
-           fps: float = 50.0, model: mujoco.MjModel | None = None,
-           signer_map: SignerMap = DEFAULT_MAP) -> Path:
+def export(
+    source,
+    output: str | os.PathLike,
+    *,
+    score: str | os.PathLike | None = None,
+    fps: float = 50.0,
+    model: mujoco.MjModel | None = None,
+    signer_map: SignerMap = DEFAULT_MAP,
+) -> Path:
     """Export a motion to ``output`` (``.glb``, ``.gltf``, ``.bvh``, ``.pose``, ``.csv`` or
     ``.html``, see :data:`FORMATS`).
 
@@ -159,8 +188,9 @@ def export(source, output: str | os.PathLike, *, score: str | os.PathLike | None
     if isinstance(source, Motion):
         motion = source
     elif hasattr(source, "qpos") and hasattr(source, "schedule"):
-        motion = Motion(np.asarray(source.qpos), float(source.fps),
-                        schedule_tuples(source.schedule))  # fmt: skip
+        motion = Motion(
+            np.asarray(source.qpos), float(source.fps), schedule_tuples(source.schedule)
+        )
     else:
         motion = load_motion(source, score=score, fps=fps, model=model)
     inputs = [p for p in (source, score) if isinstance(p, str | os.PathLike)]

@@ -41,11 +41,14 @@ def joint_names(model: mujoco.MjModel, signer_map: SignerMap = DEFAULT_MAP) -> l
 
 def _quat_mats(q: np.ndarray) -> np.ndarray:
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)  # fmt: skip
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
 
 
 def euler_order(quats: np.ndarray) -> str:
@@ -62,8 +65,9 @@ def euler_order(quats: np.ndarray) -> str:
     return order
 
 
-def build_bvh(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
-              signer_map: SignerMap = DEFAULT_MAP):
+def build_bvh(
+    model: mujoco.MjModel, qpos: np.ndarray, fps: float, *, signer_map: SignerMap = DEFAULT_MAP
+):
     """The motion as a ``bvhio.BvhContainer`` (see the module docstring)."""
     bvhio = mo.require("bvhio", "BVH")
     glm = mo.require("glm", "BVH")  # PyGLM, which bvhio uses
@@ -90,8 +94,9 @@ def build_bvh(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
         if is_root or slide[b]:
             j.Channels = ["Xposition", "Yposition", "Zposition"]
         j.Channels += [f"{a}rotation" for a in order]
-        j.Keyframes = [st.Pose(glm.vec3(*lpos_y[k, b]), glm.quat(*lquat_y[k, b]))
-                       for k in range(len(qpos))]  # fmt: skip
+        j.Keyframes = [
+            st.Pose(glm.vec3(*lpos_y[k, b]), glm.quat(*lquat_y[k, b])) for k in range(len(qpos))
+        ]
         for c in children.get(b, []):
             j.Children.append(joint(c, False))
         if not j.Children:
@@ -102,10 +107,17 @@ def build_bvh(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
         root = joint(roots[0], True)
     else:  # several bodies hang from the world: a still root joint holds them
         root = bvhio.BvhJoint("world", glm.vec3(0, 0, 0))
-        root.Channels = ["Xposition", "Yposition", "Zposition",
-                         "Zrotation", "Xrotation", "Yrotation"]  # fmt: skip
-        root.Keyframes = [st.Pose(glm.vec3(0, 0, 0), glm.quat(1, 0, 0, 0))
-                          for _ in range(len(qpos))]  # fmt: skip
+        root.Channels = [
+            "Xposition",
+            "Yposition",
+            "Zposition",
+            "Zrotation",
+            "Xrotation",
+            "Yrotation",
+        ]
+        root.Keyframes = [
+            st.Pose(glm.vec3(0, 0, 0), glm.quat(1, 0, 0, 0)) for _ in range(len(qpos))
+        ]
         root.Children = [joint(c, False) for c in roots]
     return bvhio.BvhContainer(root, len(qpos), 1.0 / fps)
 
@@ -130,8 +142,14 @@ def _default_tip(model: mujoco.MjModel, b: int, signer_map: SignerMap) -> np.nda
     return mo.YUP @ np.array([END_LENGTH, 0.0, 0.0])  # forward, out of the face
 
 
-def write_bvh(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray, fps: float,
-              *, signer_map: SignerMap = DEFAULT_MAP) -> None:
+def write_bvh(
+    path: str | os.PathLike,
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    *,
+    signer_map: SignerMap = DEFAULT_MAP,
+) -> None:
     """Write the motion to ``path`` as BVH (the caller makes it atomic)."""
     bvhio = mo.require("bvhio", "BVH")
     bvhio.writeBvh(str(path), build_bvh(model, qpos, fps, signer_map=signer_map), PRECISION)

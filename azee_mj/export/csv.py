@@ -22,8 +22,14 @@ def columns(signer_map: SignerMap = DEFAULT_MAP) -> tuple[str, ...]:
     return (*signer_map.sites, *signer_map.loci)
 
 
-def write_csv(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray, fps: float,
-              *, signer_map: SignerMap = DEFAULT_MAP) -> None:
+def write_csv(
+    path: str | os.PathLike,
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    *,
+    signer_map: SignerMap = DEFAULT_MAP,
+) -> None:
     """Write the sites' positions on every frame to ``path`` (the caller makes it atomic)."""
     mo.check_qpos(model, qpos, fps)
     names = columns(signer_map)

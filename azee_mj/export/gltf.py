@@ -47,8 +47,14 @@ def _yup_quat_xyzw() -> list[float]:
     return [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
 
 
-def build_gltf(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
-               groups=VISUAL_GROUPS, segments: int = SEGMENTS):
+def build_gltf(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    *,
+    groups=VISUAL_GROUPS,
+    segments: int = SEGMENTS,
+):
     """The signer and its motion as a ``pygltflib.GLTF2`` with one binary blob.
 
     Args:
@@ -72,15 +78,17 @@ def build_gltf(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
         while len(blob) % 4:
             blob.append(0)
         data = np.ascontiguousarray(arr).tobytes()
-        g.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob),
-                                           byteLength=len(data), target=target))  # fmt: skip
+        g.bufferViews.append(
+            gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target)
+        )
         blob.extend(data)
         return len(g.bufferViews) - 1
 
     def add_accessor(arr: np.ndarray, type_: str, target=None, minmax=False) -> int:
         ctype = gl.FLOAT if arr.dtype == np.float32 else gl.UNSIGNED_INT
-        acc = gl.Accessor(bufferView=add_view(arr, target), componentType=ctype,
-                          count=len(arr), type=type_)  # fmt: skip
+        acc = gl.Accessor(
+            bufferView=add_view(arr, target), componentType=ctype, count=len(arr), type=type_
+        )
         if minmax:
             a = arr.reshape(len(arr), -1)
             acc.min, acc.max = a.min(0).tolist(), a.max(0).tolist()
@@ -101,14 +109,18 @@ def build_gltf(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
             key = ("rgba", tuple(np.round(rgba, 4)))
             name = "rgba_" + "_".join(f"{x:.2f}" for x in rgba)
         if key not in mat_index:
-            g.materials.append(gl.Material(
-                name=name,
-                pbrMetallicRoughness=gl.PbrMetallicRoughness(
-                    baseColorFactor=srgb_to_linear(rgba), metallicFactor=0.0,
-                    roughnessFactor=float(np.clip(1.0 - 0.6 * shin, 0.2, 1.0))),
-                alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE",
-                doubleSided=False,
-            ))  # fmt: skip
+            g.materials.append(
+                gl.Material(
+                    name=name,
+                    pbrMetallicRoughness=gl.PbrMetallicRoughness(
+                        baseColorFactor=srgb_to_linear(rgba),
+                        metallicFactor=0.0,
+                        roughnessFactor=float(np.clip(1.0 - 0.6 * shin, 0.2, 1.0)),
+                    ),
+                    alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE",
+                    doubleSided=False,
+                )
+            )
             mat_index[key] = len(g.materials) - 1
         return mat_index[key]
 
@@ -123,14 +135,18 @@ def build_gltf(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
             if m is None:
                 continue
             p, n, tri = m
-            prims.append(gl.Primitive(
-                attributes=gl.Attributes(
-                    POSITION=add_accessor(p.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER, True),
-                    NORMAL=add_accessor(n.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER)),
-                indices=add_accessor(tri.astype(np.uint32).reshape(-1), gl.SCALAR,
-                                     gl.ELEMENT_ARRAY_BUFFER),
-                material=material(geom),
-            ))  # fmt: skip
+            prims.append(
+                gl.Primitive(
+                    attributes=gl.Attributes(
+                        POSITION=add_accessor(p.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER, True),
+                        NORMAL=add_accessor(n.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER),
+                    ),
+                    indices=add_accessor(
+                        tri.astype(np.uint32).reshape(-1), gl.SCALAR, gl.ELEMENT_ARRAY_BUFFER
+                    ),
+                    material=material(geom),
+                )
+            )
         if prims:
             g.meshes.append(gl.Mesh(name=names[b], primitives=prims))
             body_mesh[b] = len(g.meshes) - 1
@@ -164,11 +180,15 @@ def build_gltf(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
                 continue
             if t_acc is None:
                 t_acc = add_accessor(times, gl.SCALAR, minmax=True)
-            out = add_accessor(values.astype(np.float32), gl.VEC4 if path == "rotation"
-                               else gl.VEC3)  # fmt: skip
+            out = add_accessor(
+                values.astype(np.float32), gl.VEC4 if path == "rotation" else gl.VEC3
+            )
             samplers.append(gl.AnimationSampler(input=t_acc, output=out, interpolation="LINEAR"))
-            channels.append(gl.AnimationChannel(
-                sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=b, path=path)))
+            channels.append(
+                gl.AnimationChannel(
+                    sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=b, path=path)
+                )
+            )
     if channels:
         g.animations = [gl.Animation(name="motion", samplers=samplers, channels=channels)]
     g.buffers = [gl.Buffer(byteLength=len(blob))]
@@ -181,8 +201,9 @@ def glb_bytes(model: mujoco.MjModel, qpos: np.ndarray, fps: float, **kw) -> byte
     return b"".join(build_gltf(model, qpos, fps, **kw).save_to_bytes())
 
 
-def write_gltf(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray,
-               fps: float, **kw) -> None:
+def write_gltf(
+    path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray, fps: float, **kw
+) -> None:
     """Write ``.glb`` (binary) or ``.gltf`` (JSON with the buffer embedded as a data URI)
     to ``path`` as it is (the caller makes it atomic)."""
     g = build_gltf(model, qpos, fps, **kw)
@@ -191,7 +212,8 @@ def write_gltf(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray,
             f.write(b"".join(g.save_to_bytes()))
     else:
         data = g.binary_blob()
-        g.buffers[0].uri = ("data:application/octet-stream;base64,"
-                            + base64.b64encode(data).decode("ascii"))  # fmt: skip
+        g.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode(
+            "ascii"
+        )
         with open(path, "w") as f:
             f.write(g.to_json())

@@ -32,8 +32,9 @@ def require(module: str, what: str):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise MissingExtraError(f"{what} export needs the package {module.split('.')[0]!r}: "
-                                f"{EXPORT_HINT}") from None  # fmt: skip
+        raise MissingExtraError(
+            f"{what} export needs the package {module.split('.')[0]!r}: {EXPORT_HINT}"
+        ) from None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,7 +51,8 @@ class Motion:
     qpos: np.ndarray
     fps: float
     schedule: Mapping[str, tuple[tuple[str, float, float], ...]] = dataclasses.field(
-        default_factory=dict)  # fmt: skip
+        default_factory=dict
+    )
     name: str = ""
 
     @property
@@ -64,9 +66,11 @@ def schedule_tuples(schedule) -> dict[str, tuple[tuple[str, float, float], ...]]
     out = {}
     for track, ivs in schedule.items():
         out[track] = tuple(
-            (i.block, float(i.start), float(i.end)) if hasattr(i, "block") else
-            (str(i[0]), float(i[1]), float(i[2])) for i in ivs
-        )  # fmt: skip
+            (i.block, float(i.start), float(i.end))
+            if hasattr(i, "block")
+            else (str(i[0]), float(i[1]), float(i[2]))
+            for i in ivs
+        )
     return out
 
 
@@ -74,8 +78,10 @@ def check_qpos(model: mujoco.MjModel, qpos: np.ndarray, fps: float, where: str =
     """Raise :class:`AzeeError` unless ``qpos`` is (T >= 1, nq) finite and ``fps`` > 0."""
     q = np.asarray(qpos)
     if q.ndim != 2 or q.shape[1] != model.nq or len(q) == 0:
-        raise AzeeError(f"{where}: expected postures of shape (T >= 1, {model.nq}) for this "
-                        f"signer; got shape {q.shape}")  # fmt: skip
+        raise AzeeError(
+            f"{where}: expected postures of shape (T >= 1, {model.nq}) for this "
+            f"signer; got shape {q.shape}"
+        )
     if not np.all(np.isfinite(q)):
         raise AzeeError(f"{where}: holds non-finite values")
     if not (np.isfinite(fps) and fps > 0):
@@ -117,10 +123,15 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton products ``a * b`` of quaternions (..., 4) ``wxyz``."""
     aw, ax, ay, az = np.moveaxis(a, -1, 0)
     bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], -1)  # fmt: skip
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        -1,
+    )
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -130,8 +141,9 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w * t + np.cross(u, t)
 
 
-def local_frames(model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def local_frames(
+    model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Each body's pose in its parent's frame, (T, nbody, 3) and (T, nbody, 4) ``wxyz``,
     from world frames as :func:`body_frames` gives them (the world body keeps its own).
     Quaternion signs are made continuous in time (no flip between consecutive frames) for

@@ -50,23 +50,35 @@ def camera_pose(name: str = CAMERA) -> dict:
     R = data.cam_xmat[c].reshape(3, 3)  # columns: camera x, y, z (it looks along -z)
     p = data.cam_xpos[c]
     target = p - ORBIT_DISTANCE * R[:, 2]
-    return {"position": (mo.YUP @ p).tolist(), "target": (mo.YUP @ target).tolist(),
-            "up": (mo.YUP @ R[:, 1]).tolist(), "fovy": float(scene.cam_fovy[c])}  # fmt: skip
+    return {
+        "position": (mo.YUP @ p).tolist(),
+        "target": (mo.YUP @ target).tolist(),
+        "up": (mo.YUP @ R[:, 1]).tolist(),
+        "fovy": float(scene.cam_fovy[c]),
+    }
 
 
-def build_html(model: mujoco.MjModel, qpos: np.ndarray, fps: float,
-               schedule: Mapping[str, tuple[tuple[str, float, float], ...]] | None = None,
-               title: str = "azee_mj") -> str:
+def build_html(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    schedule: Mapping[str, tuple[tuple[str, float, float], ...]] | None = None,
+    title: str = "azee_mj",
+) -> str:
     """The page's text (see the module docstring). ``schedule``: per track, ``(block, start,
     end)`` intervals [s] whose block names the page shows at the current time."""
     glb = gltf.glb_bytes(model, qpos, fps)
     three = (VENDOR / "three.min.js").read_text(encoding="utf-8")
     info = {
-        "title": title, "fps": float(fps), "frames": len(qpos),
-        "duration": (len(qpos) - 1) / float(fps), "camera": camera_pose(),
-        "schedule": {k: [[b, float(s), float(e)] for b, s, e in v]
-                     for k, v in (schedule or {}).items()},
-    }  # fmt: skip
+        "title": title,
+        "fps": float(fps),
+        "frames": len(qpos),
+        "duration": (len(qpos) - 1) / float(fps),
+        "camera": camera_pose(),
+        "schedule": {
+            k: [[b, float(s), float(e)] for b, s, e in v] for k, v in (schedule or {}).items()
+        },
+    }
     page = _TEMPLATE
     for key, value in (
         ("@TITLE@", html.escape(title)),
@@ -78,8 +90,14 @@ def build_html(model: mujoco.MjModel, qpos: np.ndarray, fps: float,
     return page
 
 
-def write_player(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray,
-                 fps: float, schedule=None, title: str = "azee_mj") -> None:
+def write_player(
+    path: str | os.PathLike,
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    schedule=None,
+    title: str = "azee_mj",
+) -> None:
     """Write the page to ``path`` (the caller makes it atomic)."""
     mo.check_qpos(model, qpos, fps)
     Path(path).write_text(build_html(model, qpos, fps, schedule, title), encoding="utf-8")

@@ -68,57 +68,189 @@ def _eye_corner(side: str, brow_end: str) -> tuple[Term, ...]:
 #: The bundled signer's legs (visual geoms on the pelvis): hip, knee, ankle, heel, toe
 #: in the pelvis frame [m], right side (the left mirrors y).
 LEG_POINTS_R = {
-    "HIP": (-0.015, -0.085, -0.02), "KNEE": (0.0, -0.095, -0.47),
-    "ANKLE": (-0.02, -0.1, -0.86), "HEEL": (-0.095, -0.1, -0.915),
+    "HIP": (-0.015, -0.085, -0.02),
+    "KNEE": (0.0, -0.095, -0.47),
+    "ANKLE": (-0.02, -0.1, -0.86),
+    "HEEL": (-0.095, -0.1, -0.915),
     "FOOT_INDEX": (0.155, -0.1, -0.915),
-}  # fmt: skip
+}
 
 POSE_POINTS = (
-    "NOSE", "LEFT_EYE_INNER", "LEFT_EYE", "LEFT_EYE_OUTER", "RIGHT_EYE_INNER", "RIGHT_EYE",
-    "RIGHT_EYE_OUTER", "LEFT_EAR", "RIGHT_EAR", "MOUTH_LEFT", "MOUTH_RIGHT",
-    "LEFT_SHOULDER", "RIGHT_SHOULDER", "LEFT_ELBOW", "RIGHT_ELBOW", "LEFT_WRIST",
-    "RIGHT_WRIST", "LEFT_PINKY", "RIGHT_PINKY", "LEFT_INDEX", "RIGHT_INDEX", "LEFT_THUMB",
-    "RIGHT_THUMB", "LEFT_HIP", "RIGHT_HIP", "LEFT_KNEE", "RIGHT_KNEE", "LEFT_ANKLE",
-    "RIGHT_ANKLE", "LEFT_HEEL", "RIGHT_HEEL", "LEFT_FOOT_INDEX", "RIGHT_FOOT_INDEX",
-)  # fmt: skip
+    "NOSE",
+    "LEFT_EYE_INNER",
+    "LEFT_EYE",
+    "LEFT_EYE_OUTER",
+    "RIGHT_EYE_INNER",
+    "RIGHT_EYE",
+    "RIGHT_EYE_OUTER",
+    "LEFT_EAR",
+    "RIGHT_EAR",
+    "MOUTH_LEFT",
+    "MOUTH_RIGHT",
+    "LEFT_SHOULDER",
+    "RIGHT_SHOULDER",
+    "LEFT_ELBOW",
+    "RIGHT_ELBOW",
+    "LEFT_WRIST",
+    "RIGHT_WRIST",
+    "LEFT_PINKY",
+    "RIGHT_PINKY",
+    "LEFT_INDEX",
+    "RIGHT_INDEX",
+    "LEFT_THUMB",
+    "RIGHT_THUMB",
+    "LEFT_HIP",
+    "RIGHT_HIP",
+    "LEFT_KNEE",
+    "RIGHT_KNEE",
+    "LEFT_ANKLE",
+    "RIGHT_ANKLE",
+    "LEFT_HEEL",
+    "RIGHT_HEEL",
+    "LEFT_FOOT_INDEX",
+    "RIGHT_FOOT_INDEX",
+)
 #: MediaPipe's POSE_CONNECTIONS.
 POSE_LIMBS = (
-    (0, 1), (1, 2), (2, 3), (3, 7), (0, 4), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12),
-    (11, 13), (13, 15), (15, 17), (15, 19), (15, 21), (17, 19), (12, 14), (14, 16),
-    (16, 18), (16, 20), (16, 22), (18, 20), (11, 23), (12, 24), (23, 24), (23, 25),
-    (24, 26), (25, 27), (26, 28), (27, 29), (28, 30), (29, 31), (30, 32), (27, 31), (28, 32),
-)  # fmt: skip
+    (0, 1),
+    (1, 2),
+    (2, 3),
+    (3, 7),
+    (0, 4),
+    (4, 5),
+    (5, 6),
+    (6, 8),
+    (9, 10),
+    (11, 12),
+    (11, 13),
+    (13, 15),
+    (15, 17),
+    (15, 19),
+    (15, 21),
+    (17, 19),
+    (12, 14),
+    (14, 16),
+    (16, 18),
+    (16, 20),
+    (16, 22),
+    (18, 20),
+    (11, 23),
+    (12, 24),
+    (23, 24),
+    (23, 25),
+    (24, 26),
+    (25, 27),
+    (26, 28),
+    (27, 29),
+    (28, 30),
+    (29, 31),
+    (30, 32),
+    (27, 31),
+    (28, 32),
+)
 HAND_POINTS = (
-    "WRIST", "THUMB_CMC", "THUMB_MCP", "THUMB_IP", "THUMB_TIP",
-    "INDEX_FINGER_MCP", "INDEX_FINGER_PIP", "INDEX_FINGER_DIP", "INDEX_FINGER_TIP",
-    "MIDDLE_FINGER_MCP", "MIDDLE_FINGER_PIP", "MIDDLE_FINGER_DIP", "MIDDLE_FINGER_TIP",
-    "RING_FINGER_MCP", "RING_FINGER_PIP", "RING_FINGER_DIP", "RING_FINGER_TIP",
-    "PINKY_MCP", "PINKY_PIP", "PINKY_DIP", "PINKY_TIP",
-)  # fmt: skip
+    "WRIST",
+    "THUMB_CMC",
+    "THUMB_MCP",
+    "THUMB_IP",
+    "THUMB_TIP",
+    "INDEX_FINGER_MCP",
+    "INDEX_FINGER_PIP",
+    "INDEX_FINGER_DIP",
+    "INDEX_FINGER_TIP",
+    "MIDDLE_FINGER_MCP",
+    "MIDDLE_FINGER_PIP",
+    "MIDDLE_FINGER_DIP",
+    "MIDDLE_FINGER_TIP",
+    "RING_FINGER_MCP",
+    "RING_FINGER_PIP",
+    "RING_FINGER_DIP",
+    "RING_FINGER_TIP",
+    "PINKY_MCP",
+    "PINKY_PIP",
+    "PINKY_DIP",
+    "PINKY_TIP",
+)
 #: MediaPipe's HAND_CONNECTIONS.
 HAND_LIMBS = (
-    (0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5, 9), (9, 10),
-    (10, 11), (11, 12), (9, 13), (13, 14), (14, 15), (15, 16), (13, 17), (0, 17), (17, 18),
-    (18, 19), (19, 20),
-)  # fmt: skip
+    (0, 1),
+    (1, 2),
+    (2, 3),
+    (3, 4),
+    (0, 5),
+    (5, 6),
+    (6, 7),
+    (7, 8),
+    (5, 9),
+    (9, 10),
+    (10, 11),
+    (11, 12),
+    (9, 13),
+    (13, 14),
+    (14, 15),
+    (15, 16),
+    (13, 17),
+    (0, 17),
+    (17, 18),
+    (18, 19),
+    (19, 20),
+)
 #: Face-mesh index -> AZee site (the subject's right is MediaPipe's lower-numbered side).
 FACE_SITES = {
-    "1": "NO", "2": "NSP", "13": "MO", "152": "CH", "151": "FH",
-    "468": "EYE_R", "473": "EYE_L",
-    "105": "EB_R", "334": "EB_L", "107": "EBi_R", "336": "EBi_L", "70": "EBe_R", "300": "EBe_L",
-    "61": "MO_R", "291": "MO_L", "98": "NO_R", "327": "NO_L", "50": "CK_R", "280": "CK_L",
-    "21": "TE_R", "251": "TE_L", "234": "EAR_R", "454": "EAR_L", "93": "LOBE_R", "323": "LOBE_L",
-}  # fmt: skip
+    "1": "NO",
+    "2": "NSP",
+    "13": "MO",
+    "152": "CH",
+    "151": "FH",
+    "468": "EYE_R",
+    "473": "EYE_L",
+    "105": "EB_R",
+    "334": "EB_L",
+    "107": "EBi_R",
+    "336": "EBi_L",
+    "70": "EBe_R",
+    "300": "EBe_L",
+    "61": "MO_R",
+    "291": "MO_L",
+    "98": "NO_R",
+    "327": "NO_L",
+    "50": "CK_R",
+    "280": "CK_L",
+    "21": "TE_R",
+    "251": "TE_L",
+    "234": "EAR_R",
+    "454": "EAR_L",
+    "93": "LOBE_R",
+    "323": "LOBE_L",
+}
 #: Lines drawn between face points (brows, eyes, nose, mouth, the side of the face).
 FACE_LIMBS_BY_NAME = (
-    ("70", "105"), ("105", "107"), ("336", "334"), ("334", "300"), ("468", "473"),
-    ("151", "1"), ("98", "2"), ("2", "327"), ("61", "13"), ("13", "291"), ("13", "152"),
-    ("21", "234"), ("234", "93"), ("251", "454"), ("454", "323"), ("50", "61"), ("280", "291"),
-)  # fmt: skip
+    ("70", "105"),
+    ("105", "107"),
+    ("336", "334"),
+    ("334", "300"),
+    ("468", "473"),
+    ("151", "1"),
+    ("98", "2"),
+    ("2", "327"),
+    ("61", "13"),
+    ("13", "291"),
+    ("13", "152"),
+    ("21", "234"),
+    ("234", "93"),
+    ("251", "454"),
+    ("454", "323"),
+    ("50", "61"),
+    ("280", "291"),
+)
 
-_HAND_DIGITS = (("THUMB", "thumb", "T"), ("INDEX_FINGER", "index", "I"),
-                ("MIDDLE_FINGER", "middle", "M"), ("RING_FINGER", "ring", "R"),
-                ("PINKY", "little", "L"))  # fmt: skip
+_HAND_DIGITS = (
+    ("THUMB", "thumb", "T"),
+    ("INDEX_FINGER", "index", "I"),
+    ("MIDDLE_FINGER", "middle", "M"),
+    ("RING_FINGER", "ring", "R"),
+    ("PINKY", "little", "L"),
+)
 
 
 def _pose_point_terms(name: str) -> tuple[Term, ...]:
@@ -129,12 +261,17 @@ def _pose_point_terms(name: str) -> tuple[Term, ...]:
     if name.startswith("MOUTH_"):
         return (_s("MO_L" if name.endswith("LEFT") else "MO_R"),)
     table = {
-        "EYE": (_s(f"EYE_{side}"),), "EYE_INNER": _eye_corner(side, "EBi"),
-        "EYE_OUTER": _eye_corner(side, "EBe"), "EAR": (_s(f"EAR_{side}"),),
-        "SHOULDER": (_b(f"arm_{side}"),), "ELBOW": (_b(f"f_arm_{side}"),),
-        "WRIST": (_s(f"WR_{side}"),), "PINKY": (_b(f"little_{side}_1"),),
-        "INDEX": (_b(f"index_{side}_1"),), "THUMB": (_b(f"thumb_{side}_2"),),
-    }  # fmt: skip
+        "EYE": (_s(f"EYE_{side}"),),
+        "EYE_INNER": _eye_corner(side, "EBi"),
+        "EYE_OUTER": _eye_corner(side, "EBe"),
+        "EAR": (_s(f"EAR_{side}"),),
+        "SHOULDER": (_b(f"arm_{side}"),),
+        "ELBOW": (_b(f"f_arm_{side}"),),
+        "WRIST": (_s(f"WR_{side}"),),
+        "PINKY": (_b(f"little_{side}_1"),),
+        "INDEX": (_b(f"index_{side}_1"),),
+        "THUMB": (_b(f"thumb_{side}_2"),),
+    }
     if part in table:
         return table[part]
     x, y, z = LEG_POINTS_R[part]
@@ -170,8 +307,9 @@ def pose_to_signer(p: np.ndarray) -> np.ndarray:
     return np.stack([-p[..., 2] / SCALE, (p[..., 0] - CX) / SCALE, (CY - p[..., 1]) / SCALE], -1)
 
 
-def keypoints(model: mujoco.MjModel, qpos: np.ndarray,
-              signer_map: SignerMap = DEFAULT_MAP) -> dict[str, np.ndarray]:
+def keypoints(
+    model: mujoco.MjModel, qpos: np.ndarray, signer_map: SignerMap = DEFAULT_MAP
+) -> dict[str, np.ndarray]:
     """Per component, its points (T, P, 3) in the signer frame [m] on every frame."""
     data = mujoco.MjData(model)
     T = len(qpos)
@@ -215,12 +353,14 @@ def _face_limbs() -> list[tuple[int, int]]:
 def _hand_colors() -> list[tuple[int, int, int]]:
     # pose-format's holistic hand palette: a hue per finger, lighter toward the tip
     base = [(192, 0, 0), (192, 192, 0), (0, 192, 0), (0, 192, 192), (0, 0, 192)]
-    return [(255, 0, 0)] + [tuple(min(255, math.floor(x + 35 * (i % 4))) for x in base[i // 4])
-                            for i in range(20)]  # fmt: skip
+    return [(255, 0, 0)] + [
+        tuple(min(255, math.floor(x + 35 * (i % 4))) for x in base[i // 4]) for i in range(20)
+    ]
 
 
-def build_pose(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
-               signer_map: SignerMap = DEFAULT_MAP):
+def build_pose(
+    model: mujoco.MjModel, qpos: np.ndarray, fps: float, *, signer_map: SignerMap = DEFAULT_MAP
+):
     """The keypoints as a ``pose_format.Pose`` (see the module docstring)."""
     pf = mo.require("pose_format", ".pose")
     mo.require("pose_format.numpy", ".pose")
@@ -229,25 +369,41 @@ def build_pose(model: mujoco.MjModel, qpos: np.ndarray, fps: float, *,
 
     mo.check_qpos(model, qpos, fps)
     pts = keypoints(model, np.asarray(qpos, float), signer_map)
-    limbs = {"POSE_LANDMARKS": list(POSE_LIMBS), "FACE_LANDMARKS": _face_limbs(),
-             "LEFT_HAND_LANDMARKS": list(HAND_LIMBS), "RIGHT_HAND_LANDMARKS": list(HAND_LIMBS)}
-    colors = {"POSE_LANDMARKS": [(255, 0, 0)], "FACE_LANDMARKS": [(128, 0, 0)],
-              "LEFT_HAND_LANDMARKS": _hand_colors(), "RIGHT_HAND_LANDMARKS": _hand_colors()}
+    limbs = {
+        "POSE_LANDMARKS": list(POSE_LIMBS),
+        "FACE_LANDMARKS": _face_limbs(),
+        "LEFT_HAND_LANDMARKS": list(HAND_LIMBS),
+        "RIGHT_HAND_LANDMARKS": list(HAND_LIMBS),
+    }
+    colors = {
+        "POSE_LANDMARKS": [(255, 0, 0)],
+        "FACE_LANDMARKS": [(128, 0, 0)],
+        "LEFT_HAND_LANDMARKS": _hand_colors(),
+        "RIGHT_HAND_LANDMARKS": _hand_colors(),
+    }
     components = [
-        PoseHeaderComponent(name=c, points=list(POINTS[c][0]), limbs=limbs[c],
-                            colors=colors[c], point_format="XYZC")
+        PoseHeaderComponent(
+            name=c, points=list(POINTS[c][0]), limbs=limbs[c], colors=colors[c], point_format="XYZC"
+        )
         for c in POINTS
-    ]  # fmt: skip
-    header = PoseHeader(version=0.2, dimensions=PoseHeaderDimensions(WIDTH, HEIGHT, 0),
-                        components=components)  # fmt: skip
+    ]
+    header = PoseHeader(
+        version=0.2, dimensions=PoseHeaderDimensions(WIDTH, HEIGHT, 0), components=components
+    )
     data = np.concatenate([signer_to_pose(pts[c]) for c in POINTS], axis=1)
     data = data[:, None].astype(np.float32)  # (frames, people, points, dims)
     conf = np.ones(data.shape[:3], np.float32)
     return pf.Pose(header, NumPyPoseBody(fps=float(fps), data=data, confidence=conf))
 
 
-def write_pose(path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray, fps: float,
-               *, signer_map: SignerMap = DEFAULT_MAP) -> None:
+def write_pose(
+    path: str | os.PathLike,
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    *,
+    signer_map: SignerMap = DEFAULT_MAP,
+) -> None:
     """Write the keypoints to ``path`` as ``.pose`` (the caller makes it atomic)."""
     pose = build_pose(model, qpos, fps, signer_map=signer_map)
     with open(path, "wb") as f:

@@ -20,8 +20,11 @@ def _grid(rings: list[tuple[float, float, float]], segments: int):
     pos, nrm = [], []
     for r, z, a in rings:
         pos.append(np.stack([r * np.cos(phi), r * np.sin(phi), np.full_like(phi, z)], 1))
-        nrm.append(np.stack([np.sin(a) * np.cos(phi), np.sin(a) * np.sin(phi),
-                             np.full_like(phi, np.cos(a))], 1))  # fmt: skip
+        nrm.append(
+            np.stack(
+                [np.sin(a) * np.cos(phi), np.sin(a) * np.sin(phi), np.full_like(phi, np.cos(a))], 1
+            )
+        )
     n = segments + 1
     tri = []
     for i in range(len(rings) - 1):
@@ -66,16 +69,22 @@ def _disk(radius: float, z: float, up: bool, segments: int):
     nrm = np.tile([0.0, 0.0, 1.0 if up else -1.0], (segments + 1, 1))
     j = np.arange(segments)
     a, b = 1 + j, 1 + (j + 1) % segments
-    tri = np.stack([np.zeros(segments, np.int64), a, b] if up else
-                   [np.zeros(segments, np.int64), b, a], 1)  # fmt: skip
+    tri = np.stack(
+        [np.zeros(segments, np.int64), a, b] if up else [np.zeros(segments, np.int64), b, a], 1
+    )
     return pos, nrm, tri
 
 
 def cylinder(radius: float, half_length: float, segments: int = SEGMENTS):
     """A closed cylinder of half-length ``half_length`` along z."""
     side = _grid([(radius, -half_length, np.pi / 2), (radius, half_length, np.pi / 2)], segments)
-    return merge([side, _disk(radius, -half_length, False, segments),
-                  _disk(radius, half_length, True, segments)])  # fmt: skip
+    return merge(
+        [
+            side,
+            _disk(radius, -half_length, False, segments),
+            _disk(radius, half_length, True, segments),
+        ]
+    )
 
 
 def box(half_sizes):
@@ -91,8 +100,9 @@ def box(half_sizes):
             if sign < 0:
                 u, v = v, u
             c = n * h
-            corners = [c + su * u * h + sv * v * h for su, sv in
-                       ((-1, -1), (1, -1), (1, 1), (-1, 1))]  # fmt: skip
+            corners = [
+                c + su * u * h + sv * v * h for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+            ]
             base = len(pos)
             pos += corners
             nrm += [n] * 4

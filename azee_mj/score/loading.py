@@ -121,11 +121,13 @@ def _read_json(path: Path) -> Any:
         return int(s)
 
     try:
-        return json.loads(text, object_pairs_hook=pairs, parse_constant=bad_constant,
-                          parse_int=parse_int)  # fmt: skip
+        return json.loads(
+            text, object_pairs_hook=pairs, parse_constant=bad_constant, parse_int=parse_int
+        )
     except RecursionError:
-        raise ScoreError(f"{path}: invalid score: nested deeper than {MAX_DEPTH} levels of "
-                         "objects and arrays") from None
+        raise ScoreError(
+            f"{path}: invalid score: nested deeper than {MAX_DEPTH} levels of objects and arrays"
+        ) from None
     except _BigNumber as e:
         raise ScoreError(
             f"{path}: invalid score: the integer {shorten(e.args[0], 20)} has "
@@ -210,11 +212,9 @@ _VECTOR_FORMS = {
     "from": ("from", "to"),
     "unit": ("unit",),
 }
-_POINT_DESC = (
-    'a point ("@SITE", "^locus", [x, y, z], {"translate": P, "by": V} or {"mid": [P, Q]})'
-)
+_POINT_DESC = 'a point ("@SITE", "^locus", [x, y, z], {"translate": P, "by": V} or {"mid": [P, Q]})'
 _VECTOR_DESC = (
-    'a vector (fwd, back, left, right, up, down, lat(s), lat(w), [x, y, z], or one of '
+    "a vector (fwd, back, left, right, up, down, lat(s), lat(w), [x, y, z], or one of "
     '{"dir"|"nrm": BONE}, {"opp": V}, {"scale": V, "by": k}, {"add": [V, ...]}, '
     '{"cross": [V1, V2]}, {"from": P, "to": Q}, {"unit": V})'
 )
@@ -275,9 +275,11 @@ class _Loader:
             raise pre.fail(f"expected a block (a JSON object), got {got(obj)}")
         if "name" not in obj:
             raise pre.fail(
-                "missing field 'name'", "a block needs name, kind, start, end",
-                field="name", show_field=False,
-            )  # fmt: skip
+                "missing field 'name'",
+                "a block needs name, kind, start, end",
+                field="name",
+                show_field=False,
+            )
         name = string(pre, "name", obj["name"])
         if not name:
             raise pre.fail("a block name cannot be empty", field="name")
@@ -291,9 +293,11 @@ class _Loader:
         loc = Loc(path)
         if "kind" not in obj:
             raise loc.fail(
-                "missing field 'kind'", "a block needs name, kind, start, end",
-                field="kind", show_field=False,
-            )  # fmt: skip
+                "missing field 'kind'",
+                "a block needs name, kind, start, end",
+                field="kind",
+                show_field=False,
+            )
         kind_s = string(loc, "kind", obj["kind"])
         kinds = [k.value for k in BlockKind]
         if kind_s not in kinds:
@@ -315,9 +319,11 @@ class _Loader:
         if parent_dur is None:
             abs_start, abs_end = 0.0, exact_time(end - start)
             if abs_end > MAX_DURATION:
-                raise loc.fail(f"the score lasts {num(end - start)} s",
-                               f"the longest score is {MAX_DURATION:g} s (1 hour)",
-                               field="end")  # fmt: skip
+                raise loc.fail(
+                    f"the score lasts {num(end - start)} s",
+                    f"the longest score is {MAX_DURATION:g} s (1 hour)",
+                    field="end",
+                )
         else:
             inside = (
                 "a child's times are relative to its parent's start and lie within "
@@ -341,12 +347,16 @@ class _Loader:
             abs_start = min(max(exact_time(parent_abs + start), lo), hi)
             abs_end = min(max(exact_time(parent_abs + end), lo), hi)
         if abs_end <= abs_start:
-            raise loc.fail(f"lasts {num(end - start)} s", "a block lasts at least 1e-06 s "
-                           "(times are resolved to the microsecond)", field="end")  # fmt: skip
+            raise loc.fail(
+                f"lasts {num(end - start)} s",
+                "a block lasts at least 1e-06 s (times are resolved to the microsecond)",
+                field="end",
+            )
         fields: dict[str, Any] = {}
         if kind is BlockKind.SYNC:
-            fields["children"] = self.children(loc, obj["children"], abs_start, end - start,
-                                               abs_end)  # fmt: skip
+            fields["children"] = self.children(
+                loc, obj["children"], abs_start, end - start, abs_end
+            )
         elif kind is BlockKind.CSTR:
             fields["constraints"] = self.constraints(loc, obj["constraints"])
         elif kind is BlockKind.HOLD:
@@ -365,15 +375,15 @@ class _Loader:
             **fields,
         )
 
-    def children(self, loc: Loc, items: Any, abs_start: float, dur: float,
-                 abs_end: float) -> tuple[Block, ...]:  # fmt: skip
+    def children(
+        self, loc: Loc, items: Any, abs_start: float, dur: float, abs_end: float
+    ) -> tuple[Block, ...]:
         if not isinstance(items, (list, tuple)):
             raise loc.fail(f"expected a list of blocks, got {got(items)}", field="children")
         blocks: list[Block] = []
         seen: dict[str, int] = {}
         for i, item in enumerate(items, 1):
-            child = self.block(item, Loc(loc.path, f"child {i}"), loc.path, abs_start, dur,
-                               abs_end)  # fmt: skip
+            child = self.block(item, Loc(loc.path, f"child {i}"), loc.path, abs_start, dur, abs_end)
             if child.name in seen:
                 raise Loc(loc.path, f"child {i}").fail(
                     f"duplicate name '{child.name}' (child {seen[child.name]} has it too)",
@@ -420,9 +430,7 @@ class _Loader:
 
     def constraints(self, loc: Loc, items: Any) -> tuple[Constraint, ...]:
         if not isinstance(items, (list, tuple)):
-            raise loc.fail(
-                f"expected a list of constraints, got {got(items)}", field="constraints"
-            )
+            raise loc.fail(f"expected a list of constraints, got {got(items)}", field="constraints")
         return tuple(self.constraint(loc.path, i, item) for i, item in enumerate(items, 1))
 
     def constraint(self, path: str, index: int, obj: Any) -> Constraint:
@@ -444,7 +452,7 @@ class _Loader:
         loc = Loc(path, f"constraint {index} ({ctype})", frozenset({"site", "bone"}))
         required, optional = _CONSTRAINT_KEYS[ctype]
         ann = check_keys(loc, obj, required, optional, f"{_ARTICLE[ctype]} constraint")
-        common = dict(index=index, annotations=ann)
+        common = {"index": index, "annotations": ann}
         if ctype == "place":
             return Place(
                 site=self.refs.body_site(loc, "site", obj["site"], "a place"),
@@ -454,9 +462,7 @@ class _Loader:
             )
         if ctype == "orient":
             tol_deg = (
-                positive(loc, "tol_deg", obj["tol_deg"])
-                if "tol_deg" in obj
-                else DEFAULT_TOL_DEG
+                positive(loc, "tol_deg", obj["tol_deg"]) if "tol_deg" in obj else DEFAULT_TOL_DEG
             )
             return Orient(
                 bone=self.refs.bone(loc, "bone", obj["bone"]),
@@ -487,9 +493,7 @@ class _Loader:
             written = string(loc, "side", obj["side"])
             side = self.refs.side(loc, "side", written, written)
             if not self.map.morphs[mid].sided:
-                raise loc.fail(
-                    f"morph '{mid}' has no sides", "remove 'side'", field="side"
-                )
+                raise loc.fail(f"morph '{mid}' has no sides", "remove 'side'", field="side")
         return MorphC(id=mid, weight=weight, side=side, **common)
 
     def trill(self, loc: Loc, obj: Mapping[str, Any], common: dict[str, Any]) -> Trill:
@@ -518,9 +522,11 @@ class _Loader:
             )
         if amp_key not in obj:
             raise loc.fail(
-                f"missing field '{amp_key}'", f"a {mover} trill needs its amplitude in {unit}",
-                field=amp_key, show_field=False,
-            )  # fmt: skip
+                f"missing field '{amp_key}'",
+                f"a {mover} trill needs its amplitude in {unit}",
+                field=amp_key,
+                show_field=False,
+            )
         amplitude = positive(loc, amp_key, obj[amp_key])
         if bone is not None:
             amplitude = math.radians(amplitude)
@@ -544,9 +550,11 @@ class _Loader:
         ploc = Loc(loc.path, "field 'path'")
         if "shape" not in obj:
             raise ploc.fail(
-                "missing field 'shape'", f"valid shapes are {', '.join(shapes)}",
-                field="path.shape", show_field=False,
-            )  # fmt: skip
+                "missing field 'shape'",
+                f"valid shapes are {', '.join(shapes)}",
+                field="path.shape",
+                show_field=False,
+            )
         shape = string(loc, "path.shape", obj["shape"])
         if shape not in _SHAPE_KEYS:
             raise loc.fail(
@@ -568,9 +576,13 @@ class _Loader:
     # -- expressions ---------------------------------------------------------------------
 
     def form(
-        self, loc: Loc, field: str, obj: Mapping[str, Any], forms: dict[str, tuple[str, ...]],
+        self,
+        loc: Loc,
+        field: str,
+        obj: Mapping[str, Any],
+        forms: dict[str, tuple[str, ...]],
         desc: str,
-    ) -> str:  # fmt: skip
+    ) -> str:
         """The head key of an expression object, after checking its keys."""
         known = [k for f in forms.values() for k in f]
         for key in obj:
@@ -583,8 +595,7 @@ class _Loader:
         heads = [k for k in obj if k in forms]
         if len(heads) != 1:
             what = (
-                f"{got(obj)} mixes the forms "
-                + " and ".join(f"'{h}'" for h in heads)
+                f"{got(obj)} mixes the forms " + " and ".join(f"'{h}'" for h in heads)
                 if heads
                 else f"{got(obj)} is incomplete"
             )
@@ -599,9 +610,7 @@ class _Loader:
                 )
         for key in forms[head]:
             if key not in obj:
-                raise loc.fail(
-                    f"'{head}' needs '{key}'", f"expected {desc}", field=field
-                )
+                raise loc.fail(f"'{head}' needs '{key}'", f"expected {desc}", field=field)
         return head
 
     def items(self, loc: Loc, field: str, v: Any, n: int | None, what: str) -> list[Any]:

@@ -9,7 +9,7 @@ import enum
 import math
 from collections.abc import Iterator, Mapping
 from types import MappingProxyType
-from typing import Any, ClassVar, Union
+from typing import Any, ClassVar
 
 from azee_mj.sites import DEFAULT_MAP, BoneMap, SignerMap
 
@@ -211,8 +211,8 @@ class VUnit:
     v: VectorExpr
 
 
-PointExpr = Union[PSite, PLiteral, PTranslate, PMid]  # noqa: UP007 (forward references)
-VectorExpr = Union[VAxis, VLiteral, VBoneAxis, VOpp, VScale, VAdd, VCross, VFrom, VUnit]
+PointExpr = PSite | PLiteral | PTranslate | PMid
+VectorExpr = VAxis | VLiteral | VBoneAxis | VOpp | VScale | VAdd | VCross | VFrom | VUnit
 
 
 # ---------------------------------------------------------------------------------------
@@ -243,7 +243,7 @@ class Circle:
     normal: VectorExpr | None = None
 
 
-Route = Union[Straight, Arc, Circle]
+Route = Straight | Arc | Circle
 
 
 # ---------------------------------------------------------------------------------------
@@ -255,7 +255,7 @@ def _empty() -> Mapping[str, Any]:
     return MappingProxyType({})
 
 
-_ANN = dict(default_factory=_empty, compare=False)
+_ANN = {"default_factory": _empty, "compare": False}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -324,7 +324,7 @@ class Trill:
     annotations: Mapping[str, Any] = dataclasses.field(**_ANN)  # type: ignore[call-overload]
 
 
-Constraint = Union[Place, Orient, MorphC, Look, Trill]
+Constraint = Place | Orient | MorphC | Look | Trill
 #: The ``type`` of each constraint record, in the order messages list them.
 CONSTRAINT_TYPES = ("place", "orient", "morph", "look", "trill")
 

@@ -60,17 +60,19 @@ def _bone_stems() -> tuple[frozenset[str], frozenset[str], frozenset[str]]:
 _LATERAL_SITES = frozenset(LATERAL_STEMS) | {f"{d}_{s}" for d in DIGITS for s in DIGIT_STEMS}
 
 SITE = RefKind(
-    "site", "@",
+    "site",
+    "@",
     "'@STEM', '@STEM(side)' or '@STEM(side,n)', e.g. '@FH', '@I_TIP(s)', '@I_KN(s,2)'",
     frozenset(MIDLINE_STEMS) - _LATERAL_SITES,
     _LATERAL_SITES,
     frozenset(f"{d}_{s}" for d in DIGITS for s in PHALANX_STEMS),
-)  # fmt: skip
+)
 BONE = RefKind(
-    "bone", "!",
+    "bone",
+    "!",
     "'!bone', '!bone(side)' or '!bone(side,n)', e.g. '!head', '!f_arm(s)', '!index(s,2)'",
     *_bone_stems(),
-)  # fmt: skip
+)
 
 
 class References:
@@ -92,15 +94,17 @@ class References:
         """Split ``STEM`` / ``STEM(side)`` / ``STEM(side,n)``: (stem, side, n)."""
         m = _REF_RE.match(text[1:])
         if not m:
-            raise loc.fail(f"malformed {kind.noun} reference '{text}'", f"write {kind.example}",
-                           field=field)  # fmt: skip
+            raise loc.fail(
+                f"malformed {kind.noun} reference '{text}'", f"write {kind.example}", field=field
+            )
         stem, args = m.group(1), m.group(2)
         if args is None:
             return stem, None, None
         parts = [a.strip() for a in args.split(",")]
         if len(parts) > 2 or not parts[0]:
-            raise loc.fail(f"malformed {kind.noun} reference '{text}'", f"write {kind.example}",
-                           field=field)  # fmt: skip
+            raise loc.fail(
+                f"malformed {kind.noun} reference '{text}'", f"write {kind.example}", field=field
+            )
         side = self.side(loc, field, parts[0], text)
         n = None
         if len(parts) == 2:
@@ -113,34 +117,39 @@ class References:
             n = int(parts[1])
         return stem, side, n
 
-    def _resolve(self, loc: Loc, field: str, text: str, kind: RefKind,
-                 names: Mapping[str, Any]) -> str:  # fmt: skip
+    def _resolve(
+        self, loc: Loc, field: str, text: str, kind: RefKind, names: Mapping[str, Any]
+    ) -> str:
         """The full name ``text`` stands for among ``names`` (model sites or bones)."""
         stem, side, n = self._split(loc, field, text, kind)
         what, sg = f"{kind.noun} '{stem}'", kind.sigil
         if side is None and stem in names:
             return stem
         if side is not None and stem in kind.midline:
-            raise loc.fail(f"{what} is on the midline and takes no side", f"write '{sg}{stem}'",
-                           field=field)  # fmt: skip
+            raise loc.fail(
+                f"{what} is on the midline and takes no side", f"write '{sg}{stem}'", field=field
+            )
         if stem in kind.sided:
             if side is None:
                 forms = ", ".join(f"'{sg}{stem}({s})'" for s in "swR") + f" or '{sg}{stem}(L)'"
                 raise loc.fail(f"{what} needs a side", "write " + forms, field=field)
             if n is not None:
-                raise loc.fail(f"{what} takes no phalanx number", f"write '{sg}{stem}(s)'",
-                               field=field)  # fmt: skip
+                raise loc.fail(
+                    f"{what} takes no phalanx number", f"write '{sg}{stem}(s)'", field=field
+                )
         if stem in kind.phalanx and (side is None or n is None):
-            raise loc.fail(f"{what} needs a side and a phalanx number",
-                           f"write e.g. '{sg}{stem}(s,1)' (1 proximal to 3 distal)",
-                           field=field)  # fmt: skip
+            raise loc.fail(
+                f"{what} needs a side and a phalanx number",
+                f"write e.g. '{sg}{stem}(s,1)' (1 proximal to 3 distal)",
+                field=field,
+            )
         name = stem + (f"_{side}" if side else "") + (f"_{n}" if n else "")
         if name not in names:
             # Quote and suggest as written: '@I_TPI(s)' -> did you mean '@I_TIP(s)'?
             stems = sorted(kind.midline | kind.sided | kind.phalanx)
             match = difflib.get_close_matches(stem, stems, n=1, cutoff=0.6)
             if match:
-                args = "" if match[0] in kind.midline else text[1 + len(stem):]
+                args = "" if match[0] in kind.midline else text[1 + len(stem) :]
                 valid = f"did you mean '{sg}{match[0]}{args}'? {_SITES_HINT}"
             else:
                 valid = "azee-mj sites lists all valid names"

@@ -149,8 +149,11 @@ def number(loc: Loc, field: str, v: Any) -> float:
     if isinstance(v, float) and not math.isfinite(v):
         raise loc.fail(f"expected a finite number, got {got(v)}", field=field)
     if abs(v) > MAX_NUMBER:
-        raise loc.fail(f"{got(v)} is out of range", f"numbers in a score lie within "
-                       f"-{MAX_NUMBER:g} to {MAX_NUMBER:g}", field=field)  # fmt: skip
+        raise loc.fail(
+            f"{got(v)} is out of range",
+            f"numbers in a score lie within -{MAX_NUMBER:g} to {MAX_NUMBER:g}",
+            field=field,
+        )
     return float(v)
 
 
@@ -189,8 +192,11 @@ def xyz(loc: Loc, field: str, v: list[Any] | tuple[Any, ...]) -> tuple[float, fl
     if not all(isinstance(x, int) or math.isfinite(x) for x in v):
         raise loc.fail(f"expected finite numbers, got {got(v)}", field=field)
     if any(abs(x) > MAX_NUMBER for x in v):
-        raise loc.fail(f"{got(v)} is out of range", f"numbers in a score lie within "
-                       f"-{MAX_NUMBER:g} to {MAX_NUMBER:g}", field=field)  # fmt: skip
+        raise loc.fail(
+            f"{got(v)} is out of range",
+            f"numbers in a score lie within -{MAX_NUMBER:g} to {MAX_NUMBER:g}",
+            field=field,
+        )
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
@@ -243,6 +249,8 @@ def check_depth(data: Any, limit: int = MAX_DEPTH) -> None:
         else:
             continue
         if depth > limit:
-            raise Loc("").fail(f"the score is nested deeper than {limit} levels of objects and "
-                               "arrays", f"the deepest nesting allowed is {limit}")  # fmt: skip
+            raise Loc("").fail(
+                f"the score is nested deeper than {limit} levels of objects and arrays",
+                f"the deepest nesting allowed is {limit}",
+            )
         stack.extend((c, depth + 1) for c in children)

@@ -296,6 +296,16 @@ class Solver:
         """A :class:`~azee_mj.kinematics.Kinematics` on the posture in ``self.data``."""
         return Kinematics(self.model, self.data, self.names)
 
+    def at(self, q: np.ndarray, jacobians: bool = False) -> Kinematics:
+        """Set posture ``q`` (nq,) [rad] and run the kinematics (and ``mj_comPos`` when
+        ``jacobians``): the one place outside the core that writes the solver's ``MjData``.
+        Returns the evaluator on that posture; it is valid until the next call."""
+        self.data.qpos[:] = q
+        mujoco.mj_kinematics(self.model, self.data)
+        if jacobians:
+            mujoco.mj_comPos(self.model, self.data)
+        return self.kinematics()
+
     # -- problem set-up ---------------------------------------------------------------
     def bodies_of(self, c: Constraint) -> set[int]:
         """The bodies whose motion changes constraint ``c``'s rows."""

@@ -1,0 +1,187 @@
+"""Motion a signer makes: speeds and smoothness of every hand movement of the realized examples.
+
+    python bench/motion.py [--label NAME] [--plot PATH] [--examples a,b] [--no-sentence]
+
+Realizes every bundled example and the 10-sign sentence of ``bench/realize.py`` at 50 fps
+and measures, with :mod:`azee_mj.movement`, each wrist's movements (a movement runs between
+two pauses; see ``movement.segments``): duration, path length, peak and mean speed, SPARC,
+LDLJ, speed peaks and the two-thirds power-law exponent on curved paths. Each movement is
+labelled ``lead-in`` (it ends by the first block's start), ``retraction`` (it starts after
+the last block's end) or ``sign``. Per rollout: the frames at which a constraint active in
+its block is outside its tolerance, and the fastest joint [rad/s].
+
+Results go to ``bench/results/motion.json`` (or ``motion-NAME.json``), so that two versions
+of the realizer sit side by side: run it once per version and compare the files. ``--plot``
+draws each example's wrist speed profiles (needs matplotlib).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from machine import machine
+from realize import SIGNS, sentence
+
+from azee_mj import movement as mv
+from azee_mj.score import load_score
+from azee_mj.timeline import realize
+
+ROOT = HERE.parent
+FPS = 50.0
+WRISTS = ("WR_R", "WR_L")
+#: Human ranges the motion issue states: wrist speed [m/s], joint speed [rad/s], SPARC.
+WRIST_MAX, JOINT_MAX, SPARC_RANGE = 3.0, 25.0, (-1.6, -1.35)
+
+
+def scores(names: list[str], with_sentence: bool) -> dict[str, dict]:
+    out = {n: json.loads((ROOT / "examples" / f"{n}.json").read_text()) for n in names}
+    if with_sentence:
+        out["sentence-10"] = sentence((SIGNS * 2)[:10])
+    return out
+
+
+def label(m: mv.Movement, t: np.ndarray, first_start: float, last_end: float) -> str:
+    slack = 2.0 / FPS  # a movement comes to rest within two frames of its block
+    if t[m.last] <= first_start + slack:
+        return "lead-in"
+    if t[m.first] >= last_end - slack:
+        return "retraction"
+    return "sign"
+
+
+def leaving_frames(rollout) -> int:
+    """Frames at which an active place / orient / look constraint is out of tolerance."""
+    bad = np.zeros(len(rollout.time), bool)
+    for tr in rollout.traces:
+        a = np.asarray(tr.active)
+        bad[tr.first : tr.first + len(a)] |= ~(a <= tr.tol)
+    return int(bad.sum())
+
+
+def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
+    r = realize(load_score(score_dict), fps=FPS)
+    spans = [(i.start, i.end) for v in r.schedule.values() for i in v]
+    first = min((s for s, _ in spans), default=0.0)
+    last = max((e for _, e in spans), default=float(r.time[-1]))
+    moves, profiles = [], {}
+    for site in WRISTS:
+        pos = r.site_pos[:, r.site_names.index(site)]
+        profiles[site] = mv.speed(pos, FPS)
+        for m in mv.movements(pos, FPS):
+            rec = {
+                "site": site,
+                "phase": label(m, r.time, first, last),
+                "t0": float(r.time[m.first]),
+                "t1": float(r.time[m.last]),
+            }
+            rec.update({k: v for k, v in vars(m).items() if k not in ("first", "last")})
+            moves.append(rec)
+    joint = float(np.abs(np.diff(r.qpos, axis=0)).max() * FPS) if len(r.time) > 1 else 0.0
+    rec = {
+        "name": name,
+        "duration_s": float(r.time[-1]),
+        "frames": len(r.time),
+        "leaving_frames": leaving_frames(r),
+        "max_joint_speed": joint,
+        "peak_wrist_speed": max((m["peak_speed"] for m in moves), default=0.0),
+        "movements": moves,
+    }
+    return rec, {"time": r.time, **profiles}
+
+
+def summary(recs: list[dict]) -> dict:
+    moves = [m for r in recs for m in r["movements"]]
+    chosen = [m for m in moves if m["phase"] != "sign"]
+    sp = [m["sparc"] for m in moves]
+    return {
+        "movements": len(moves),
+        "median_sparc": float(np.median(sp)) if sp else float("nan"),
+        "multi_peak": sum(m["peaks"] > 1 for m in moves),
+        "peak_wrist_speed": max((m["peak_speed"] for m in moves), default=0.0),
+        "chosen_over_3ms": sum(m["peak_speed"] > WRIST_MAX for m in chosen),
+        "chosen_sparc_out": sum(not SPARC_RANGE[0] <= m["sparc"] <= SPARC_RANGE[1] for m in chosen),
+        "leaving_frames": sum(r["leaving_frames"] for r in recs),
+        "max_joint_speed": max(r["max_joint_speed"] for r in recs),
+    }
+
+
+def table(recs: list[dict]) -> str:
+    rows = [
+        (
+            "| rollout | movements | peak wrist [m/s] | median SPARC | multi-peak | leaving frames "
+            "| fastest joint [rad/s] |"
+        ),
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in recs:
+        sp = [m["sparc"] for m in r["movements"]]
+        rows.append(
+            f"| {r['name']} | {len(r['movements'])} | {r['peak_wrist_speed']:.2f} | "
+            f"{np.median(sp) if sp else float('nan'):.2f} | "
+            f"{sum(m['peaks'] > 1 for m in r['movements'])} | {r['leaving_frames']} | "
+            f"{r['max_joint_speed']:.1f} |"
+        )
+    return "\n".join(rows)
+
+
+def plot(path: Path, profiles: dict[str, dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(profiles)
+    fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n), sharex=False, squeeze=False)
+    for ax, (name, p) in zip(axes[:, 0], profiles.items()):
+        for site in WRISTS:
+            ax.plot(p["time"], p[site], label=site, lw=1)
+        ax.axhline(WRIST_MAX, color="0.6", lw=0.6, ls="--")
+        ax.set_ylabel("m/s")
+        ax.set_title(name, fontsize=8, loc="left")
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--label", help="write bench/results/motion-LABEL.json")
+    ap.add_argument("--plot", type=Path, help="a PNG of the wrist speed profiles")
+    ap.add_argument("--examples", help="comma-separated example names (default: all)")
+    ap.add_argument("--no-sentence", action="store_true", help="skip the 10-sign sentence")
+    a = ap.parse_args(argv)
+    names = (
+        a.examples.split(",")
+        if a.examples
+        else sorted(p.stem for p in (ROOT / "examples").glob("*.json"))
+    )
+    recs, profiles = [], {}
+    for name, s in scores(names, not a.no_sentence).items():
+        rec, prof = measure(name, s)
+        recs.append(rec)
+        profiles[name] = prof
+    out = {"machine": machine(), "summary": summary(recs), "rollouts": recs}
+    print(table(recs))
+    print(json.dumps(out["summary"], indent=1))
+    stem = f"motion-{a.label}" if a.label else "motion"
+    (HERE / "results" / f"{stem}.json").write_text(json.dumps(out, indent=1) + "\n")
+    if a.plot:
+        plot(a.plot, profiles)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -9,6 +9,7 @@ Units: seconds.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import os
 from collections.abc import Mapping
 
@@ -18,10 +19,36 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik, natural, reach
 from azee_mj import score as sc
+from azee_mj.anatomy import SignerAnatomy, descends
 from azee_mj.kinematics import compile_point, compile_vector
 from azee_mj.model import MODEL_PATH
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timing import frame_range
+
+__all__ = [
+    "Compiler",
+    "ContactWindow",
+    "DrivenConstraint",
+    "Mode",
+    "Schedule",
+    "TrackInterval",
+    "branch_seeder",
+    "constraint_tracks",
+    "contact_pairs",
+    "descends",
+    "joint_weights",
+    "make_solver",
+    "schedule",
+]
+
+
+class Mode(enum.Enum):
+    """How the score is laid out in time: per track (``multitrack``), or one whole-body
+    key posture at every block boundary (``flattened``, the 2018 method, for comparison)."""
+
+    MULTITRACK = "multitrack"
+    FLATTENED = "flattened"
+
 
 #: How dear moving a track's joints is, relative to an arm joint (1): the trunk and neck are
 #: dearer to move than the arms, and a clavicle joint costs CLAVICLE_WEIGHT.
@@ -60,15 +87,10 @@ def branch_seeder(solver: ik.Solver, smap: SignerMap):
     """The solver's ``seeder`` for a signer: when a solve fails from its warm start, the
     placed hands turned and each arm on other elbow-swivel branches
     (:func:`azee_mj.reach.swivel_seeds`)."""
-    m = solver.model
-    arms = [
-        a
-        for a in reach.arms_of(smap)
-        if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, a.hand) >= 0
-    ]
+    anatomy = SignerAnatomy(solver.model, smap)
+    arms = list(anatomy.arms)
     if not arms:
         return None
-    hands = [(a, solver.body_id(a.hand)) for a in arms]
     # each arm's forearm pronation and wrist flexion: the track's joints after the elbow
     turns = {}
     for a in arms:
@@ -76,15 +98,7 @@ def branch_seeder(solver: ik.Solver, smap: SignerMap):
         k = list(track).index(a.elbow) if track else -1
         if 0 <= k and k + 2 < len(track):
             turns[a] = (track[k + 1], track[k + 2])
-    cache: dict[str, reach.Arm | None] = {}
-
-    def hand_of(site: str):
-        if site not in cache:
-            body = int(m.site_bodyid[solver.site_id(site)])
-            cache[site] = next((a for a, h in hands if descends(m, body, h)), None)
-        return cache[site]
-
-    return lambda s, problem, q: reach.swivel_seeds(s, arms, hand_of, problem, q, turns)
+    return lambda s, problem, q: reach.swivel_seeds(s, arms, anatomy.hand_of, problem, q, turns)
 
 
 # ---------------------------------------------------------------------------------------
@@ -92,30 +106,19 @@ def branch_seeder(solver: ik.Solver, smap: SignerMap):
 # ---------------------------------------------------------------------------------------
 
 
-def descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
-    """Whether ``body`` is ``ancestor`` or one of its descendants."""
-    while body > 0:
-        if body == ancestor:
-            return True
-        body = int(model.body_parentid[body])
-    return False
-
-
 class Compiler:
     """Translates score records into :mod:`azee_mj.constraints` on one signer, and names the
     tracks each drives."""
 
-    def __init__(self, model: mujoco.MjModel, smap: SignerMap):
+    def __init__(
+        self, model: mujoco.MjModel, smap: SignerMap, anatomy: SignerAnatomy | None = None
+    ):
         self.m, self.smap = model, smap
+        self.anatomy = anatomy or SignerAnatomy(model, smap)
         self.joint_track: dict[int, str] = {}
         for track, joints in smap.tracks.items():
             for j in joints:
                 self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
-        self.forearms = [
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, smap.bones[b].body)
-            for b in ("f_arm_L", "f_arm_R")
-            if b in smap.bones
-        ]
 
     # expressions
     def site(self, ref: sc.SiteRef) -> str:
@@ -192,15 +195,9 @@ class Compiler:
         return tuple(
             s
             for s in sites
-            if self.on_forearm(s) and any(t.startswith("arm") for t in self.site_tracks(s) - own)
+            if self.anatomy.on_forearm(s)
+            and any(t.startswith("arm") for t in self.site_tracks(s) - own)
         )
-
-    def on_forearm(self, site: str) -> bool:
-        """Whether model ``site`` rides on a forearm or hand (a part the other arm brings to
-        a contact; the shoulder and the upper arm stay where they are)."""
-        m = self.m
-        body = int(m.site_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)])
-        return any(descends(m, body, fore) for fore in self.forearms)
 
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
@@ -278,7 +275,8 @@ class Schedule:
         self.score, self.solver = score, solver
         self.m = solver.model
         self.smap = signer_map
-        self.comp = Compiler(self.m, self.smap)
+        self.anatomy = SignerAnatomy(self.m, signer_map)
+        self.comp = Compiler(self.m, self.smap, self.anatomy)
         self.track_joints = {t: tuple(js) for t, js in self.smap.tracks.items()}
         self.track_dofs = {
             t: np.array([self.m.jnt_dofadr[solver.joint_id(j)] for j in js], int)
@@ -287,11 +285,6 @@ class Schedule:
         self.home = solver.natural.copy()
         self.blocks = [b for b in score.blocks()]
         self.by_path = {b.path: b for b in self.blocks}
-        self.hands = [
-            solver.body_id(self.smap.bones[f"palm_{x}"].body)
-            for x in ("L", "R")
-            if f"palm_{x}" in self.smap.bones
-        ]
         self.contacts = self._contact_windows()
         self._moved_cache: dict = {}
         self.body_names = [
@@ -305,23 +298,15 @@ class Schedule:
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
                 partners = self.comp.contact_sites(c)
+                part = self.anatomy.part
                 if partners:
-                    mine = self.part(
-                        int(self.m.site_bodyid[self.solver.site_id(self.comp.site(c.site))])
-                    )
+                    mine = part(self.anatomy.site_body(self.comp.site(c.site)))
                 for s in partners:
-                    other = self.part(int(self.m.site_bodyid[self.solver.site_id(s)]))
+                    other = part(self.anatomy.site_body(s))
                     out += [
                         ContactWindow(b.start, b.end, x, y) for x in mine for y in other if x != y
                     ]
         return out
-
-    def part(self, body: int) -> tuple[int, ...]:
-        """The bodies that touch as one with ``body``: its whole hand if it is in one."""
-        for hand in self.hands:
-            if descends(self.m, body, hand):
-                return tuple(b for b in range(self.m.nbody) if descends(self.m, b, hand))
-        return (body,)
 
     def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""

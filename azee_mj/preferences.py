@@ -1,0 +1,211 @@
+"""Natural preferences a key posture is solved with, below the score's constraints: two
+skin surfaces that touch face to face, two hands meeting in the signing space, elbows low,
+the chest upright once the trunk is recruited.
+
+The tolerances are data (module constants); :class:`Preferences` turns them into the
+constraints and preference rows of one group's solve.
+
+Units: metres, radians (the tolerance tables in degrees, as named).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik, natural
+from azee_mj.anatomy import SignerAnatomy
+from azee_mj.kinematics import BodyAxis, BodyOrigin, Const, SitePos
+from azee_mj.sites import DIGITS, SignerMap
+
+#: How nearly two skin surfaces a placement joins face each other [deg], by the hand part
+#: that touches: flat parts of the hand meet flat, a finger pad nearly so, a fingertip or a
+#: knuckle touches at an angle (a finger does not point straight into the face).
+FACING_TOL = {
+    "PA": 5.0,
+    "H_BACK": 5.0,
+    "H_EDGE": 10.0,
+    "viande": 20.0,
+    "PAD": 30.0,
+    "TIP": 20.0,
+    "NA": 45.0,
+    "KN": 45.0,
+    "KNi": 45.0,
+    "BACK": 45.0,
+    "INT": 45.0,
+}
+#: How much wider the facing tolerance of two joined hands gets when head-on they would
+#: meet only behind the back (the realizer then joins them in front, leaning).
+FACING_WIDEN = 2.0
+#: How far from the signing space two joined hands may drift at the cost of one unit of
+#: naturalness [m].
+MEET_TOL = 0.1
+#: Two parts neither of which is a hand part (an elbow on the chest) [deg].
+FACING_TOL_BODY = 20.0
+#: An elbow held below its shoulder, as a natural preference when the hand is placed
+#: below the eyes: (how far below [m], the height above that costs one unit [m]).
+ELBOW_LOW = (0.02, 0.05)
+#: Rounded parts of the body [deg]: a fingertip meets them from a range of directions
+#: around the site's normal (the shoulder's cap, the forehead's and the temple's curve),
+#: as far as the fingertip's own roundness lets the site meet within its tolerance without
+#: sinking in.
+FACING_TOL_ROUNDED = {"SH": 45.0, "FH": 40.0, "TE": 40.0}
+#: How far the chest may lean from upright for one unit of naturalness cost, once the trunk
+#: is recruited [deg]: far dearer than any joint's comfort, so the trunk leans only as much
+#: as the constraints need.
+UPRIGHT_TOL_DEG = 3.0
+
+
+def facing_tol(a: str, b: str) -> float:
+    """The facing tolerance [rad] of AZee sites ``a`` and ``b`` brought together: the hand
+    part's, widened for a rounded part of the body."""
+
+    def hand(site: str) -> float:
+        parts = site.split("_")
+        if len(parts) > 1 and parts[0] in DIGITS and parts[1] in FACING_TOL:
+            return FACING_TOL[parts[1]]  # a finger part: I_TIP_R, T_KN_R_1
+        return next((t for stem, t in FACING_TOL.items() if site.startswith(stem + "_")), 0.0)
+
+    def rounded(site: str) -> float:
+        return next(
+            (
+                t
+                for stem, t in FACING_TOL_ROUNDED.items()
+                if site == stem or site.startswith(stem + "_")
+            ),
+            0.0,
+        )
+
+    tol = max(hand(a), hand(b)) or FACING_TOL_BODY
+    return np.radians(max(tol, rounded(a), rounded(b)))
+
+
+def widened(facing, factor: float = FACING_WIDEN) -> list[cn.Orient]:
+    """The facing constraints ``facing`` with their tolerances ``factor`` times wider."""
+    return [dataclasses.replace(f, tol=factor * f.tol) for f in facing]
+
+
+class Preferences:
+    """The natural preferences of the signer mapped by ``smap``, evaluated with
+    ``solver`` (its kinematics) and ``anatomy``."""
+
+    def __init__(self, solver: ik.Solver, anatomy: SignerAnatomy, smap: SignerMap):
+        self.solver, self.anatomy, self.smap = solver, anatomy, smap
+        self.azee_site = {model: azee for azee, model in smap.sites.items()}
+        ssp = smap.loci.get("ssp")
+        #: The model site where two hands meet (the neutral signing space), or None.
+        self.meet = (
+            ssp
+            if ssp is not None
+            and mujoco.mj_name2id(solver.model, mujoco.mjtObj.mjOBJ_SITE, ssp) >= 0
+            else None
+        )
+        self.chest = chest = smap.bones.get("back_2")
+        #: The chest upright, a preference once the trunk is recruited (least recruitment).
+        self.upright = (
+            ()
+            if chest is None
+            else (
+                cn.Orient(
+                    chest.body,
+                    chest.dir,
+                    cn.Rel.ALONG,
+                    Const((0.0, 0.0, 1.0)),
+                    np.radians(UPRIGHT_TOL_DEG),
+                    "upright",
+                ),
+            )
+        )
+
+    def joins_hands(self, c) -> bool:
+        """Whether constraint ``c`` places a site of one hand on a site of the other."""
+        return (
+            isinstance(c, cn.Place)
+            and isinstance(c.target, SitePos)
+            and self.anatomy.joins_hands(c.site, c.target.site)
+        )
+
+    def facing(self, cons) -> list[cn.Orient]:
+        """For each placement of a skin site on another, the two surfaces face to face:
+        outward normals opposed (within :func:`facing_tol`), unless the score orients one
+        of the two bodies itself."""
+        oriented = {c.body for c in cons if isinstance(c, cn.Orient)}
+        normals, m = self.smap.normals, self.solver.model
+        out = []
+        for c in cons:
+            if not isinstance(c, cn.Place) or not isinstance(c.target, SitePos):
+                continue
+            a, b = self.azee_site.get(c.site), self.azee_site.get(c.target.site)
+            if a not in normals or b not in normals:
+                continue
+            ba, bb = (m.body(self.anatomy.site_body(s)).name for s in (c.site, c.target.site))
+            if ba in oriented or bb in oriented:
+                continue
+            label = f"{c.label}:facing"
+            out.append(
+                cn.Orient(
+                    ba, normals[a], cn.Rel.OPP, BodyAxis(bb, normals[b]), facing_tol(a, b), label
+                )
+            )
+        return out
+
+    def meeting_place(self, cons) -> tuple[cn.Place, ...]:
+        """Where two hands meet when nothing else places them: a preference (with the
+        naturalness, below the constraints) for the contact in the neutral signing space,
+        where signers join their hands, rather than low where holding them costs least.
+        A hand that touches the other arm (its elbow, forearm or upper arm) meets it in
+        front of the body too: that arm's palm prefers ``ACROSS``, its forearm raised in
+        front with the elbow bent and low, instead of the arm held out to the side."""
+        if self.meet is None:
+            return ()
+        placed = [c for c in cons if isinstance(c, cn.Place)]
+        if len(placed) != 1 or not isinstance(placed[0].target, SitePos):
+            return ()
+        c = placed[0]
+        arm = self.anatomy.hand_of(c.site)
+        if arm is None:
+            return ()
+        if self.joins_hands(c):
+            return (cn.Place(c.site, SitePos(self.meet), MEET_TOL, "meet"),)
+        held = self.anatomy.carried_by(c.target.site)
+        if held is not None and held.arm is not arm:
+            return (cn.Place(held.palm, held.rest, MEET_TOL, "meet"),)
+        return ()
+
+    def elbows_low(self, cons, free, q: np.ndarray) -> tuple[natural.Below, ...]:
+        """A preference, with the naturalness, for each free arm whose hand is placed below
+        the eyes: its elbow no higher than its shoulder (``ELBOW_LOW``). Comfort alone
+        would sometimes fold a raised arm (the upper arm up, the forearm back) rather than
+        bend the wrist; a signer keeps the elbow down unless the hand goes above the eyes."""
+        eyes = [s for a, s in self.smap.sites.items() if a.startswith("EYE_")]
+        if not eyes:
+            return ()
+        k = self.solver.at(q)
+        eye_z = min(k.value(SitePos(s))[2] for s in eyes)
+        out, done = [], set()
+        free = set(free)
+        for c in cons:
+            if not isinstance(c, cn.Place) or (arm := self.anatomy.hand_of(c.site)) is None:
+                continue
+            if arm in done or not {arm.flex, arm.abd, arm.rot, arm.elbow} <= free:
+                continue
+            done.add(arm)
+            if k.value(c.target)[2] < eye_z:
+                margin, tol = ELBOW_LOW
+                out.append(natural.Below(arm.fore, arm.upper, margin, tol, "elbow low"))
+        return tuple(out)
+
+    def joined_behind(self, cons, q: np.ndarray) -> bool:
+        """Whether a placement of ``cons`` that joins the two hands meets, in posture
+        ``q``, behind the chest's frontal plane (the hands behind the back)."""
+        chest = self.chest
+        joined = [c for c in cons if self.joins_hands(c)]
+        if chest is None or not joined:
+            return False
+        k = self.solver.at(q)
+        origin = k.value(BodyOrigin(chest.body))
+        forward = k.value(BodyAxis(chest.body, chest.nrm))
+        return any((k.value(SitePos(c.site)) - origin) @ forward < 0.0 for c in joined)

@@ -54,6 +54,8 @@ class Mode(enum.Enum):
 #: dearer to move than the arms, and a clavicle joint costs CLAVICLE_WEIGHT.
 TRACK_WEIGHTS = {"spine": 8.0, "head": 4.0}
 CLAVICLE_WEIGHT = 3.0
+#: Tolerance of a morph's joint targets [rad].
+MORPH_TOL = 0.02
 
 
 def joint_weights(signer_map: SignerMap) -> dict[str, float]:
@@ -143,7 +145,19 @@ class Compiler:
         return None
 
     def morph_changes(self, c: sc.MorphC) -> dict[str, float]:
+        """Joint name -> change from ``qpos0`` [rad] of morph ``c`` (at its weight)."""
         return {j: c.weight * v for j, v in self.smap.morphs[c.id].joint_changes(c.side).items()}
+
+    def morph_targets(self, changes: dict[str, float]) -> list[cn.JointTarget]:
+        """Joint targets for joint changes from ``qpos0`` [rad], clipped to the joints'
+        ranges, within ``MORPH_TOL``."""
+        m, out = self.m, []
+        for j, v in changes.items():
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            lo, hi = m.jnt_range[jid]
+            val = float(np.clip(m.qpos0[m.jnt_qposadr[jid]] + v, lo, hi))
+            out.append(cn.JointTarget(j, val, MORPH_TOL, f"morph:{j}"))
+        return out
 
     # tracks
     def body_tracks(self, body: int, own_only: bool) -> set[str]:

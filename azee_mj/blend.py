@@ -1,0 +1,190 @@
+"""Per-track curves between key postures: minimum-jerk blends, timed (pure functions).
+
+A track holds each key posture while driven; consecutive keys with the same posture merge
+into one :class:`Hold`; between holds the track moves with a minimum-jerk blend, timed by
+:func:`blend_window` (in the gap before the next hold, or just before it when there is
+none), so that no joint turns faster than the blend is sized for.
+
+Units: seconds, radians (metres for a slide joint).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from azee_mj import constraints as cn
+
+#: Longest blend between two postures of a track when the gap allows more [s].
+MAX_BLEND = 0.6
+#: Shortest blend when a posture must change with no gap [s].
+MIN_BLEND = 0.08
+#: Postures closer than this per joint [rad] are the same (the solver's accuracy).
+SAME_POSTURE = 2e-3
+#: Peak joint speed a blend is sized for [rad/s] (the limit is 25 rad/s).
+BLEND_SPEED = 12.0
+#: Fastest a joint may turn between two frames solved one by one [rad/s]: a per-frame
+#: solve stays on the branch of the frame before.
+MAX_JOINT_SPEED = 20.0
+#: The minimum-jerk profile's peak speed over its mean speed (its slope at the middle,
+#: 30 u^2 (1 - u)^2 at u = 1/2): a change ``dq`` over ``T`` peaks at ``15/8 dq / T``.
+MINJERK_PEAK = 15 / 8
+#: Two times closer than this are the same instant [s].
+EPS = 1e-9
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Key:
+    """One track's posture over a segment ``[start, end)`` [s], and the constraints that
+    hold it there."""
+
+    start: float
+    end: float
+    q: np.ndarray  # (nq,) the component's solved posture (only this track's joints count)
+    cons: tuple  # ik constraints of the component (hard), for frames inside this key
+    free: tuple[str, ...]  # joints of the component
+    relax: bool = False  # a return to neutral: it blends from its start, not before it
+
+
+@dataclasses.dataclass(frozen=True)
+class Hold:
+    """Consecutive keys of one track with the same posture, merged.
+
+    Attributes:
+      start, end: the interval the track holds ``q`` [s].
+      q: the track's joint values (its dofs only).
+      relax: the first key is a return to neutral (it blends from its start).
+      shape_only: the first key's constraints are all joint targets (a hand shape).
+      due: when a return to neutral must have arrived: the end of its relax keys [s].
+    """
+
+    start: float
+    end: float
+    q: np.ndarray
+    relax: bool
+    shape_only: bool
+    due: float
+
+
+def minjerk(u: np.ndarray | float):
+    """The minimum-jerk profile 10u^3 - 15u^4 + 6u^5 on [0, 1] (clipped outside)."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+
+
+def blend_time(change: np.ndarray, speed: float) -> float:
+    """The duration [s] of a minimum-jerk blend by ``change`` (per joint) whose fastest
+    joint peaks at ``speed`` [rad/s]."""
+    return MINJERK_PEAK * float(np.max(np.abs(change))) / speed
+
+
+def holds_of(keys: list[Key], dofs: np.ndarray) -> list[Hold]:
+    """The holds of one track (joints ``dofs``): its keys, consecutive ones with the same
+    posture merged. A return to neutral is due by the end of its relax keys: a key merged
+    after those needs the posture from its start."""
+    holds: list[Hold] = []
+    for k in keys:
+        qk = k.q[dofs]
+        last = holds[-1] if holds else None
+        if (
+            last is not None
+            and abs(last.end - k.start) < EPS
+            and np.allclose(last.q, qk, atol=SAME_POSTURE)
+        ):
+            due = k.end if last.end == last.due and k.relax else last.due
+            holds[-1] = dataclasses.replace(last, end=k.end, due=due)
+        else:
+            shape_only = all(isinstance(c, cn.JointTarget) for c in k.cons)
+            holds.append(Hold(k.start, k.end, qk, k.relax, shape_only, k.end))
+    return holds
+
+
+def blend_window(
+    hold: Hold, prev: Hold | None, prev_q: np.ndarray, flattened: bool, carried=()
+) -> tuple[float, float]:
+    """When [s] a track blends from ``prev_q`` (the posture of hold ``prev``, or the
+    neutral one when None) into ``hold``: ``(w0, w1)``, no blend when equal.
+
+    A return to neutral blends from its start. Flattened, a blend fills the gap between
+    holds. Multitrack, a blend takes the gap before the hold (at most ``MAX_BLEND``, at
+    least what ``BLEND_SPEED`` needs), starting inside the previous hold when the gap is
+    too short for ``MAX_JOINT_SPEED``; it starts no earlier than the end of a key of
+    another track this one carries (``carried``, end times), and a hand shape still too
+    fast finishes late."""
+    a, b = hold.start, hold.end
+    first = prev is None
+    prev_start, prev_end = (0.0, 0.0) if first else (prev.start, prev.end)
+    if hold.relax:
+        need = max(MIN_BLEND, blend_time(hold.q - prev_q, BLEND_SPEED))
+        return a, min(b, a + max(need, min(MAX_BLEND, hold.due - a)))
+    if flattened:
+        return (a, a) if first else (prev_end, a)
+    gap = a - prev_end
+    need = max(MIN_BLEND, blend_time(hold.q - prev_q, BLEND_SPEED))
+    # the shortest blend that keeps every joint under MAX_JOINT_SPEED
+    fastest = blend_time(hold.q - prev_q, MAX_JOINT_SPEED)
+    at_start = first and a <= EPS
+    if at_start:
+        w0 = w1 = a
+    elif gap >= EPS:
+        w0, w1 = max(prev_end, a - max(min(gap, MAX_BLEND), min(need, gap))), a
+        if first:
+            w0 = max(0.0, a - max(min(a, MAX_BLEND), need))
+        # a gap too short for the change: start inside the previous hold
+        if w1 - w0 < fastest and not first:
+            w0 = max(prev_start, w1 - fastest)
+    else:  # no gap: blend at the end of the previous hold
+        w0, w1 = max(prev_start, a - need), a
+    pins = [e for e in carried if e < w1 + EPS]
+    if pins:  # never shorter than MIN_BLEND: a carried hold may end as this starts
+        w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
+    if w1 - w0 < fastest and not at_start and hold.shape_only:
+        w1 = min(b, w0 + fastest)  # still too fast: finish a shape change late
+    return w0, w1
+
+
+def track_curve(
+    keys: list[Key],
+    times: np.ndarray,
+    dofs: np.ndarray,
+    home: np.ndarray,
+    flattened: bool = False,
+    carried=(),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint values (T, len(dofs)) of one track at ``times`` [s], from the neutral
+    posture ``home`` (nq,) through its ``keys``, and a (T,) flag where it blends (see
+    :func:`blend_window`)."""
+    out = np.tile(home[dofs], (len(times), 1))
+    blending = np.zeros(len(times), bool)
+    prev, prev_q = None, home[dofs]
+    for hold in holds_of(keys, dofs):
+        w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
+        sel = (times >= w0) & (times < w1)
+        if w1 > w0:
+            u = minjerk((times[sel] - w0) / (w1 - w0))[:, None]
+            out[sel] = prev_q + u * (hold.q - prev_q)
+            blending[sel] = True
+        out[(times >= w1)] = hold.q
+        prev, prev_q = hold, hold.q
+    return out, blending
+
+
+def goal_key(keys: list[Key], i: int, dofs: np.ndarray) -> Key | None:
+    """The key a track's blend from key ``i`` heads for: the first after the keys that
+    hold key ``i``'s posture on without a gap (None: the last posture)."""
+    for a, b in zip(keys[i:], keys[i + 1 :]):
+        if abs(a.end - b.start) > EPS or not np.allclose(a.q[dofs], b.q[dofs], atol=SAME_POSTURE):
+            return b
+    return None
+
+
+def next_still(moving: np.ndarray) -> np.ndarray:
+    """(T, tracks) the first frame at or after each frame where each track does not blend
+    (-1: it blends to the end), from the (T, tracks) blending flags ``moving``."""
+    out = np.full(moving.shape, -1, int)
+    nxt = np.full(moving.shape[1], -1, int)
+    for f in range(len(moving) - 1, -1, -1):
+        nxt = np.where(moving[f], nxt, f)
+        out[f] = nxt
+    return out

@@ -1,0 +1,263 @@
+"""Constrained blend frames: a frame where a blending track still has constraints (an
+overlapping block, a transpath's path point, a permanent hand shape) is solved as an IK
+problem for the joints those constraints need, nearest the blend
+(:class:`CurvePreference`), the other joints on the blend, each joint at most a step a
+frame from the frame before; a blend that would pass through the body is pushed out.
+
+Units: seconds, metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+from azee_mj import score as sc
+from azee_mj.blend import MAX_JOINT_SPEED, Key, goal_key, minjerk, next_still
+from azee_mj.ikadapter import IKAdapter
+from azee_mj.kinematics import Const, SitePos
+from azee_mj.routes import path_points
+
+#: Restarts of a per-frame solve (inside its step box) when its start does not converge.
+FRAME_RESTARTS = 1
+#: How far from its blend curve a joint a constrained blend solves may go [rad] before the
+#: pull back counts as much as a constraint at its tolerance (a preference row of 1).
+CURVE_TOL = 0.05
+#: Tolerance of a transpath's path point [m].
+PATH_TOL = 1e-3
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CurvePreference:
+    """Joints near their values on a blend curve, as a preference of an IK problem (rows
+    ``(q - values) / tol`` that join the naturalness objective): among the postures that
+    meet the constraints, the solver takes the one nearest the blend."""
+
+    qposadr: np.ndarray  # (n,) the joints' qpos addresses
+    dofadr: np.ndarray  # (n,) their dof addresses
+    values: np.ndarray  # (n,) the curve's values [rad or m]
+    tol: float  # [rad or m]: a row is 1 this far from the curve
+
+    def rows(self, k) -> tuple[np.ndarray, np.ndarray]:
+        """Rows and their Jacobian (n, nv) on the posture of kinematics ``k``."""
+        n = len(self.dofadr)
+        J = np.zeros((n, k.m.nv))
+        J[np.arange(n), self.dofadr] = 1.0 / self.tol
+        return (k.d.qpos[self.qposadr] - self.values) / self.tol, J
+
+
+def transpath_points(
+    adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray
+) -> np.ndarray:
+    """(T, 3) path points [m] of transpath block ``b`` at every frame of ``q`` (T, nq)
+    (valid inside its interval): from the site where the frames put it at the block's
+    start to where they put it at its end, along its route, in minimum-jerk time."""
+    sched = adapter.schedule
+    site = SitePos(sched.comp.site(b.transpath_site))
+    fs = min(int(np.searchsorted(times, b.start - 1e-9)), len(times) - 1)
+    fe = min(int(np.searchsorted(times, b.end - 1e-9)), len(times) - 1)
+    x0, x1 = (adapter.at(q[f]).value(site) for f in (fs, fe))
+    u = minjerk((times - b.start) / b.duration)
+    return path_points(b.route, x0, x1, u, adapter.at(q[fs]), sched.smap)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Path:
+    """A transpath during pass 2: its block, the model site it moves, the tracks of that
+    site's limb and its points (T, 3) [m]."""
+
+    block: sc.Block
+    site: str
+    limbs: frozenset[str]
+    points: np.ndarray
+
+    def place(self, f: int) -> cn.Place:
+        """The placement of the site on its path point at frame ``f``."""
+        at = Const(tuple(self.points[f]))
+        return cn.Place(self.site, at, PATH_TOL, f"{self.block.path}@path")
+
+
+def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray) -> Path:
+    """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]."""
+    comp = adapter.schedule.comp
+    site = comp.site(b.transpath_site)
+    return Path(b, site, frozenset(comp.site_tracks(site)), transpath_points(adapter, b, q, times))
+
+
+class FrameSolver:
+    """Solves the constrained frames of blends at ``fps`` frames per second through
+    ``adapter``."""
+
+    def __init__(self, adapter: IKAdapter, fps: float):
+        self.adapter, self.schedule = adapter, adapter.schedule
+        #: Largest joint change between two frames solved one by one [rad].
+        self.step = MAX_JOINT_SPEED / fps
+        self._needs: dict[tuple, set[int]] = {}  # constraints -> the dofs they move
+
+    def paths(self, q: np.ndarray, times: np.ndarray) -> list[Path]:
+        """The score's transpaths on the blended frames ``q``."""
+        blocks = self.schedule.blocks
+        return [
+            transpath(self.adapter, b, q, times) for b in blocks if b.kind is sc.BlockKind.TRANSPATH
+        ]
+
+    def solve(self, q, times, moving, names, keys: dict[str, list[Key]]) -> np.ndarray:
+        """Frames ``q`` (T, nq) (the blends, solved in place) where the tracks ``names``
+        blend (``moving``, (T, tracks)) under the constraints of their ``keys``."""
+        paths = self.paths(q, times)
+        curve = q.copy()
+        still = next_still(moving)
+        joints = self.schedule.track_joints
+        for f, t in enumerate(times):
+            tracks = {names[i] for i in np.flatnonzero(moving[f])}
+            cons, free = self.held(keys, tracks, t)
+            for p in paths:
+                if p.block.start <= t < p.block.end and p.limbs & tracks:
+                    cons.append(p.place(f))
+                    free |= {j for tr in p.limbs for j in joints[tr]}
+            if not cons:
+                self.follow(q, f, t, tracks)
+                continue
+            free |= {j for tr in tracks for j in joints[tr]}
+            bounds = self.reach(q, curve, still[f], f, names, tracks)
+            q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
+        return q
+
+    def held(self, keys, tracks, t: float) -> tuple[list, set[str]]:
+        """The constraints the keys of blending ``tracks`` hold at time ``t`` [s], and the
+        joints they free. While blending, a key's constraints hold to its end, but for the
+        joint targets (hand shapes) the posture the blend heads for does not keep: those
+        joints are the blend's to move."""
+        cons, free = [], set()
+        for tr in sorted(tracks):  # sorted: the same rows in any process
+            i = next((i for i, k in enumerate(keys[tr]) if k.start <= t < k.end), None)
+            if i is None:
+                continue
+            key, goal = keys[tr][i], goal_key(keys[tr], i, self.schedule.track_dofs[tr])
+            keep = [
+                c
+                for c in key.cons
+                if goal is None or c in goal.cons or not isinstance(c, cn.JointTarget)
+            ]
+            cons += [c for c in keep if c not in cons]
+            free |= set(key.free)
+        return cons, free
+
+    def follow(self, q: np.ndarray, f: int, t: float, tracks) -> None:
+        """A frame of blending ``tracks`` without constraints: on the curve, back toward it
+        at most a step a frame after frames pushed out, and pushed out of the body if the
+        blend passes through it (staying close: consecutive pushed frames cannot zig-zag)."""
+        ad, step = self.adapter, self.step
+        free = {j for tr in sorted(tracks) for j in self.schedule.track_joints[tr]}
+        soft = ad.soft_targets(q[f], free)
+        if f > 0 and free:
+            d, before = ad.dofs(free), q[f - 1]
+            q[f][d] = np.clip(q[f][d], before[d] - step, before[d] + step)
+        if not tracks or not ad.penetrates(q[f], t):
+            return
+        q0 = q[f].copy()
+        if f > 0:
+            # from half a step toward the curve from the frame before, moving at most
+            # half a step more
+            d, before = ad.dofs(free), q[f - 1]
+            near = np.clip(q[f][d], before[d] - step, before[d] + step)
+            q0[d] = before[d] + 0.5 * (near - before[d])
+        q[f] = ad.solve(soft, sorted(free), q0, t, max_change=0.5 * step, restarts=0).qpos
+        if f > 0 and ad.penetrates(q[f], t):
+            # still through (it started deep in): from the frame before, clear
+            q[f] = ad.solve(soft, sorted(free), q[f - 1], t, max_change=0.5 * step, restarts=0).qpos
+
+    def constrained(self, q, curve, f: int, t: float, cons, free, bounds) -> np.ndarray:
+        """The posture of frame ``f`` meeting ``cons``. The joints the constraints move
+        start from the frame before (final by now), advanced by the blend's step (the same
+        branch), and among the postures that meet the constraints take the one nearest the
+        blend: a solve that starts where its constraints are met stops at once, and would
+        leave them still until the next key. The others follow the blend, at most a step a
+        frame from the frame before."""
+        ad, step = self.adapter, self.step
+        key = tuple(cons)
+        if key not in self._needs:
+            self._needs[key] = set(ad.solver.free_dofs(ik.IKProblem(key)).tolist())
+        needed = self._needs[key]
+        moved = sorted(j for j in free if ad.dofs([j])[0] in needed) or sorted(free)
+        rest = sorted(set(free) - set(moved))
+        q0 = q[f].copy()
+        if f > 0:
+            before = q[f - 1]
+            d = ad.dofs(moved)
+            q0[d] = before[d] + np.clip(curve[f][d] - curve[f - 1][d], -step, step)
+            if rest:
+                d = ad.dofs(rest)
+                q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
+        if bounds is not None:
+            q0 = np.clip(q0, *bounds)
+        near = (self.curve_preference(q[f], moved),)
+        res = ad.solve(
+            cons,
+            moved,
+            q0,
+            t,
+            max_change=step,
+            restarts=FRAME_RESTARTS,
+            preferences=near,
+            prefer=q[f],
+            bounds=bounds,
+        )
+        if rest and not res.converged and res.penetration > cn.PENETRATION_LIMIT:
+            # the blend goes through the body: every joint may push it out
+            res = self.on_blend(cons, q[f], free, q0, t, bounds)
+        d = ad.dofs(sorted(free))
+        if f > 0 and np.abs(res.qpos[d] - q[f - 1][d]).max() > step + 1e-9:
+            # a constraint far from the frame before (a key's hand shape that the blend
+            # reaches late): from the frame before, at most a step
+            q0[d] = q[f - 1][d]
+            if bounds is not None:
+                q0 = np.clip(q0, *bounds)
+            res = self.on_blend(cons, q[f], free, q0, t, bounds)
+        return res.qpos
+
+    def on_blend(self, cons, qf, free, q0, t: float, bounds) -> ik.IKResult:
+        """``cons`` solved moving every joint of ``free`` from ``q0``, each kept near its
+        blend value in ``qf`` (soft targets), at most a step from ``q0``."""
+        ad = self.adapter
+        soft = ad.soft_targets(qf, free)
+        return ad.solve(
+            cons + soft,
+            sorted(free),
+            q0,
+            t,
+            max_change=self.step,
+            restarts=FRAME_RESTARTS,
+            bounds=bounds,
+        )
+
+    def reach(self, q, curve, goal, f: int, names, tracks):
+        """Bounds (lower, upper) (nq,) keeping each blending track of frame ``f`` within
+        reach of the posture its blend arrives at (``goal``: per track, the first frame it
+        no longer blends, -1 if none): ``n`` frames before it, within ``n`` steps of it and
+        still within a step of the frame before. A per-frame solve that follows a path onto
+        another branch (the far side of the other arm) then returns to the key's in time,
+        at most a step a frame, rather than snap at the key. None if no track has a goal."""
+        step, solver = self.step, self.adapter.solver
+        lo, hi = solver.lower.copy(), solver.upper.copy()
+        bounded = False
+        for i, tr in enumerate(names):
+            if tr not in tracks or goal[i] < 0:
+                continue
+            d, n = self.schedule.track_dofs[tr], goal[i] - f
+            lo[d] = np.maximum(lo[d], curve[goal[i]][d] - n * step)
+            hi[d] = np.minimum(hi[d], curve[goal[i]][d] + n * step)
+            if f > 0:  # and a step at most from the frame before
+                lo[d] = np.clip(lo[d], q[f - 1][d] - step, q[f - 1][d] + step)
+                hi[d] = np.clip(hi[d], q[f - 1][d] - step, q[f - 1][d] + step)
+            bounded = True
+        return (lo, hi) if bounded else None
+
+    def curve_preference(self, qf: np.ndarray, joints) -> CurvePreference:
+        """A preference for ``joints`` at their values in posture ``qf`` (a blend's frame)."""
+        solver = self.adapter.solver
+        adr = solver.model.jnt_qposadr[[solver.joint_id(j) for j in joints]]
+        return CurvePreference(adr, self.adapter.dofs(joints), qf[adr].copy(), CURVE_TOL)

@@ -1,0 +1,114 @@
+"""The realizer's one way to the posture solver: an IK problem at a time of the score (the
+body pairs its contacts let touch then), solved, and every result kept for the stats.
+
+Both passes (key postures and frames) and the trills solve through one :class:`IKAdapter`
+on a read-only :class:`~azee_mj.schedule.Schedule`.
+
+Units: seconds, metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+from azee_mj.kinematics import Kinematics
+from azee_mj.schedule import Schedule
+
+#: How far a joint held near a posture by :meth:`IKAdapter.soft_targets` may go [rad]
+#: before it counts as much as a constraint at its tolerance.
+SOFT_TARGET_TOL = 0.3
+
+
+class IKAdapter:
+    """Solves the realizer's problems on ``schedule``'s solver and keeps every result (in
+    solving order) in ``results``."""
+
+    def __init__(self, schedule: Schedule):
+        self.schedule = schedule
+        self.solver = schedule.solver
+        self.results: list[ik.IKResult] = []
+
+    def problem(
+        self,
+        cons,
+        free,
+        q0,
+        t: float,
+        seeds=(),
+        max_change=None,
+        natural: bool = True,
+        preferences=(),
+    ) -> ik.IKProblem:
+        """The problem of constraints ``cons`` moving joints ``free`` from ``q0`` (nq,)
+        (and ``seeds``, other starts) at time ``t`` [s], each joint within ``max_change`` of
+        ``q0``, with ``preferences`` joining the naturalness (see :class:`~azee_mj.ik.IKProblem`)."""
+        names = self.schedule.body_names
+        touching = tuple((names[a], names[b]) for a, b in self.schedule.allowed_at(t) if a < b)
+        return ik.IKProblem(
+            tuple(cons),
+            tuple(free),
+            touching,
+            q0,
+            tuple(seeds),
+            max_change,
+            natural,
+            preferences=tuple(preferences),
+        )
+
+    def solve(
+        self,
+        cons,
+        free,
+        q0,
+        t: float,
+        seeds=(),
+        max_change=None,
+        natural: bool = True,
+        preferences=(),
+        restarts=None,
+        prefer=None,
+        bounds=None,
+    ) -> ik.IKResult:
+        """Solve :meth:`problem`, with the solver's ``restarts`` unless given, preferring
+        posture ``prefer`` and inside ``bounds`` ((lower, upper), each (nq,)) if given; the
+        result is kept in ``results``."""
+        problem = self.problem(cons, free, q0, t, seeds, max_change, natural, preferences)
+        if bounds is not None:
+            problem = dataclasses.replace(problem, bounds=bounds)
+        if restarts is not None:
+            problem = dataclasses.replace(problem, restarts=restarts)
+        if prefer is not None:
+            problem = dataclasses.replace(problem, prefer=prefer)
+        res = self.solver.solve(problem, q0)
+        self.results.append(res)
+        return res
+
+    def at(self, q: np.ndarray, jacobians: bool = False) -> Kinematics:
+        """The solver's kinematics on posture ``q`` (nq,) (see :meth:`~azee_mj.ik.Solver.at`)."""
+        return self.solver.at(q, jacobians)
+
+    def penetrates(self, q: np.ndarray, t: float) -> bool:
+        """Whether posture ``q`` penetrates beyond the limit, but for the body pairs the
+        contacts of time ``t`` [s] bring together."""
+        k = self.solver.at(q)
+        allowed = self.schedule.allowed_at(t)
+        return cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT
+
+    def dofs(self, joints) -> np.ndarray:
+        """Dof indices of joint names."""
+        m = self.solver.model
+        return np.array([m.jnt_dofadr[self.solver.joint_id(j)] for j in joints], int)
+
+    def soft_targets(self, q: np.ndarray, joints) -> list[cn.JointTarget]:
+        """Soft targets keeping ``joints`` near posture ``q`` (a blend to follow)."""
+        adr = self.solver.model.jnt_qposadr
+        return [
+            cn.JointTarget(
+                j, float(q[adr[self.solver.joint_id(j)]]), SOFT_TARGET_TOL, "blend", soft=True
+            )
+            for j in sorted(joints)
+        ]

@@ -1,0 +1,453 @@
+"""Pass 1: the key postures of every segment, in time order.
+
+The block boundaries cut the score into segments; in each, the active constraints are
+grouped into components of the tracks they couple (a contact couples both arms), and each
+group is solved warm-started from the postures the tracks hold (rule 1); a group where a
+block starts with placements and orientations solves the placements first (rule 2); a
+``hold`` keeps the posture its block reached, as joint targets on the tracks that block
+drove (rule 4). Tracks no block drives are not touched; the trunk and the head return to
+neutral when nothing needs them.
+
+The group policy, in named steps: :meth:`GroupPoser.solve` (placements first, natural
+preferences, facing widened when the hands would join behind the back, dropped when it
+cannot be met); :meth:`KeyPoser.recruit_trunk` when the limbs alone cannot meet a group;
+:meth:`KeyPoser.lean_less` brings a recruited trunk back toward upright; :meth:`KeyPoser.relax`.
+
+Units: seconds, metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik, reach
+from azee_mj import score as sc
+from azee_mj.blend import SAME_POSTURE, Key
+from azee_mj.diagnose import diagnose
+from azee_mj.ikadapter import IKAdapter
+from azee_mj.preferences import Preferences, widened
+from azee_mj.schedule import DrivenConstraint, Mode
+
+#: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
+LEAN_STEPS = 5
+#: Tracks that return to neutral when no block needs them.
+RELAXING = ("spine", "head")
+#: Tracks the flattened mode never moves as part of the whole body.
+FLAT_FIXED = ("face", "eyes")
+#: Two times closer than this are the same instant [s].
+EPS = 1e-9
+
+
+@dataclasses.dataclass(frozen=True)
+class Active:
+    """A constraint active in a segment, and whether its block starts with the segment."""
+
+    driven: DrivenConstraint
+    starts_now: bool
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class GroupSolve:
+    """One group's solve: the result, the constraints it was solved with (the score's and
+    the preferences made hard, e.g. face to face) and the joints it moved."""
+
+    result: ik.IKResult
+    cons: tuple
+    free: tuple[str, ...]
+
+    @property
+    def converged(self) -> bool:
+        return self.result.converged
+
+    @property
+    def qpos(self) -> np.ndarray:
+        return self.result.qpos
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Unfaced:
+    """A face-to-face solve that failed and was dropped for the placement alone, kept to
+    say why: the solve, its start posture and time [s]."""
+
+    solve: GroupSolve
+    start: np.ndarray
+    t0: float
+
+
+def violation(res: ik.IKResult) -> float:
+    """How far a result is from its tolerances (sum of value / tol over the violated)."""
+    return sum(r.value / r.tol for r in res.residuals if not r.ok) + res.penetration / 1e-3
+
+
+def components(track_sets: list[set[str]]) -> list[set[str]]:
+    """Connected components of tracks coupled by the given sets."""
+    groups: list[set[str]] = []
+    for s in track_sets:
+        s = set(s)
+        merged = [g for g in groups if g & s]
+        for g in merged:
+            s |= g
+            groups.remove(g)
+        groups.append(s)
+    return groups
+
+
+class GroupPoser:
+    """Solves one group of coupled tracks in a segment through ``adapter``, with the
+    signer's natural preferences; remembers the face-to-face solves it dropped."""
+
+    def __init__(self, adapter: IKAdapter):
+        self.adapter, self.schedule = adapter, adapter.schedule
+        self.anatomy = self.schedule.anatomy
+        self.prefs = Preferences(adapter.solver, self.anatomy, self.schedule.smap)
+        #: facing label -> the face-to-face solve dropped for the placement alone
+        self.unfaced: dict[str, Unfaced] = {}
+
+    def constraints(self, mine: list[Active]) -> list:
+        """The solver constraints of active constraints ``mine``: theirs, then the joint
+        targets of their morphs (summed per joint)."""
+        cons, targets = [], {}
+        for it in mine:
+            if it.driven.con is not None:
+                cons.append(it.driven.con)
+            for j, v in it.driven.morph.items():
+                targets[j] = targets.get(j, 0.0) + v
+        return cons + self.schedule.comp.morph_targets(targets)
+
+    def unchanged(self, group, cons, state: np.ndarray, keys, t0: float) -> bool:
+        """Whether ``cons`` are some of those that held ``group`` until ``t0`` (blocks
+        only ended) and no track outside the group moved what they name (the head under a
+        hand): nothing needs to move."""
+        dofs = self.schedule.track_dofs
+        prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < EPS]
+        carriers = set().union(*(self.schedule.moved_by(c) for c in cons)) - group
+        return (
+            len(prev) == len(group)
+            and set(cons) <= set().union(*(k.cons for k in prev))
+            and all(
+                np.allclose(state[dofs[t]], prev[0].q[dofs[t]], atol=SAME_POSTURE) for t in carriers
+            )
+        )
+
+    def solve(
+        self,
+        group: set[str],
+        items: list[Active],
+        state: np.ndarray,
+        keys,
+        t0: float,
+        upright: bool = False,
+        reuse: bool = True,
+        held: tuple[str, ...] = (),
+        restarts: int | None = None,
+    ) -> GroupSolve:
+        """Solve the constraints of ``items`` that drive tracks of ``group`` from posture
+        ``state`` at segment start ``t0`` [s] (rule 2: placements first when a block starts
+        with both). A posture still held is kept (:meth:`unchanged`; unless not ``reuse``:
+        the trunk under it moved). The ``held`` tracks of the group keep their posture in
+        ``state``, and the solve continues from ``state`` (no placements-first start).
+        ``upright``: the trunk was recruited; among the postures that meet the
+        constraints, the one with the chest nearest upright is preferred. ``restarts``:
+        the solver's, if None."""
+        ad, prefs, anatomy = self.adapter, self.prefs, self.anatomy
+        mine = [it for it in items if it.driven.tracks & group]
+        cons = self.constraints(mine)
+        joints = self.schedule.track_joints
+        free = tuple(j for t in sorted(group) if t not in held for j in joints[t])
+        if self.unchanged(group, cons, state, keys, t0) and reuse:
+            kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
+            return GroupSolve(kept, tuple(cons), free)
+        q0 = state.copy()
+        places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
+        # Also start each arm in its natural two-bone posture for its hand's target.
+        facing = prefs.facing(cons)
+        seeds = reach.arm_seeds(
+            ad.solver,
+            anatomy.arms,
+            cons + facing,
+            free,
+            q0,
+            anatomy.hand_of,
+            prefs.meet,
+            anatomy.carried_by,
+        )
+        if not held and len(places) < len(cons) and any(it.starts_now for it in mine) and places:
+            q0 = ad.solve(places, free, q0, t0, seeds, natural=False).qpos
+        where = (
+            prefs.meeting_place(cons)
+            + prefs.elbows_low(cons, free, q0)
+            + (prefs.upright if upright else ())
+        )
+
+        def attempt(with_facing) -> GroupSolve:
+            both = tuple(cons) + tuple(with_facing)
+            res = ad.solve(both, free, q0, t0, seeds, preferences=where, restarts=restarts)
+            return GroupSolve(res, both, free)
+
+        out = attempt(facing)
+        if facing and out.converged and prefs.joined_behind(cons, out.qpos):
+            out = self.join_in_front(out, attempt(widened(facing)), cons)
+        if facing and not out.converged:
+            out = self.drop_facing(out, attempt(()), facing, q0, t0)
+        return out
+
+    def join_in_front(self, faced: GroupSolve, wide: GroupSolve, cons) -> GroupSolve:
+        """Hands join in the signing space before they meet head-on: face to face with a
+        wider tolerance (``wide``: a fingertip on the back of the other hand, leaning)
+        when that meets them in front, else the head-on ``faced``."""
+        if wide.converged and not self.prefs.joined_behind(cons, wide.qpos):
+            return wide
+        return faced
+
+    def drop_facing(self, faced: GroupSolve, plain: GroupSolve, facing, q0, t0: float):
+        """Face to face is a preference below the score's constraints: the solve without
+        it (``plain``) when that meets them or misses by less than ``faced``; the dropped
+        solve is kept to say why face to face failed."""
+        if plain.converged or violation(plain.result) < violation(faced.result):
+            if not plain.converged:
+                self.unfaced.update({f.label: Unfaced(faced, q0, t0) for f in facing})
+            return plain
+        return faced
+
+    def why_not_facing(self, label: str) -> str:
+        """Why placement ``label`` could not be met face to face, when it was solved
+        without its facing after that failed (``"; face to face, ..."``), else ``""``."""
+        kept = self.unfaced.get(f"{label}:facing")
+        if kept is None:
+            return ""
+        s = kept.solve
+        problem = self.adapter.problem(s.cons, s.free, kept.start, kept.t0, natural=False)
+        why = diagnose(
+            self.adapter.solver,
+            problem,
+            s.result,
+            kept.start,
+            self.anatomy.limb_root,
+            only=f"{label}:facing",
+        )
+        return f"; face to face, {why[0].detail}" if why else ""
+
+
+class KeyPoser:
+    """Pass 1: the key postures of the adapter's schedule laid out by ``mode``; ``reasons``
+    says why a key posture misses a constraint (constraint label -> the diagnosis, see
+    :mod:`azee_mj.diagnose`)."""
+
+    def __init__(self, adapter: IKAdapter, mode: Mode):
+        self.adapter, self.schedule, self.mode = adapter, adapter.schedule, mode
+        self.groups = GroupPoser(adapter)
+        self.reasons: dict[str, str] = {}
+
+    def take(self, state: np.ndarray, tracks, q: np.ndarray) -> None:
+        """Copy the joints of ``tracks`` from posture ``q`` into ``state`` (in place)."""
+        for t in tracks:
+            d = self.schedule.track_dofs[t]
+            state[d] = q[d]
+
+    def key_postures(self) -> dict[str, list[Key]]:
+        """Each segment's groups solved in time order: per track, its keys."""
+        sched = self.schedule
+        keys: dict[str, list[Key]] = {t: [] for t in sched.track_joints}
+        state = sched.home.copy()  # the posture each track holds now
+        cstr = [
+            (b, sched.block_constraints(b)) for b in sched.blocks if b.kind is sc.BlockKind.CSTR
+        ]
+        trills = [
+            (b, dc.tracks) for b, cons in cstr for dc in cons if isinstance(dc.source, sc.Trill)
+        ]
+        for t0, t1 in itertools.pairwise(sched.events()):
+            items = [
+                Active(dc, b.start == t0)
+                for b, cons in cstr
+                if b.start <= t0 < b.end
+                for dc in cons
+                if not isinstance(dc.source, sc.Trill)
+            ]
+            held = self.hold(keys, state, t0, t1)
+            items = [it for it in items if not it.driven.tracks <= held]
+            if self.mode is Mode.MULTITRACK:
+                trilled = [tr for b, tr in trills if b.start <= t0 < b.end]
+                busy = held.union(*(it.driven.tracks for it in items), *trilled)
+                self.relax(keys, state, busy, {it.driven.con for it in items}, t0, t1)
+            if items:
+                self.pose_segment(items, keys, state, t0, t1)
+        return keys
+
+    def hold(self, keys, state: np.ndarray, t0: float, t1: float) -> set[str]:
+        """Rule 4: over a segment ``[t0, t1)`` inside a hold, the tracks of the held block
+        (realized: it ended before) keep the posture it reached. Returns those tracks."""
+        sched, held = self.schedule, set()
+        for h in sched.blocks:
+            if h.kind is not sc.BlockKind.HOLD or not h.start <= t0 < h.end:
+                continue
+            at = sched.by_path[h.hold_of].end
+            for t in sched.held_tracks(h) - held:
+                q = self.posture_at(keys[t], at).copy()
+                self.take(state, (t,), q)
+                keys[t].append(Key(t0, t1, q, (), sched.track_joints[t]))
+                held.add(t)
+        return held
+
+    def posture_at(self, keys: list[Key], t: float) -> np.ndarray:
+        """The posture of the last of a track's ``keys`` starting before time ``t`` [s]
+        (neutral if none)."""
+        before = [k for k in keys if k.start < t - EPS]
+        return before[-1].q if before else self.schedule.home
+
+    def pose_segment(self, items: list[Active], keys, state: np.ndarray, t0, t1) -> None:
+        """Solve the groups of the segment ``[t0, t1)`` (the trunk recruited where the
+        limbs alone fall short), diagnose what they miss, and append their keys."""
+        sched = self.schedule
+        if self.mode is Mode.FLATTENED:
+            # One whole-body problem: every track but the face and eyes is free.
+            driven = set().union(*(it.driven.tracks for it in items))
+            groups = [driven | (set(sched.track_joints) - set(FLAT_FIXED))]
+        else:
+            groups = components([it.driven.tracks for it in items])
+        groups = self.order(groups, items)
+        before = state.copy()
+        solved = []
+        for g in groups:
+            solved.append(self.groups.solve(g, items, state, keys, t0))
+            self.take(state, g, solved[-1].qpos)
+        if self.mode is Mode.MULTITRACK and any(not s.converged for s in solved):
+            groups, solved = self.recruit_trunk(groups, solved, items, before, keys, t0)
+        for group, s in zip(groups, solved):
+            if not s.converged:
+                self.diagnose(s, before, t0)
+            for t in group:
+                self.take(state, (t,), s.qpos)
+                if keys[t] and keys[t][-1].start == t0:
+                    keys[t].pop()  # recruited after all: no return to neutral here
+                keys[t].append(Key(t0, t1, s.qpos.copy(), s.cons, s.free))
+
+    def diagnose(self, s: GroupSolve, start: np.ndarray, t0: float) -> None:
+        """Why solve ``s`` (from ``start`` at ``t0`` [s]) misses its constraints, into
+        ``reasons`` (the first reason found for each constraint is kept)."""
+        ad = self.adapter
+        problem = ad.problem(s.cons, s.free, start, t0, natural=False)
+        limb_root = self.schedule.anatomy.limb_root
+        for dg in diagnose(ad.solver, problem, s.result, start, limb_root):
+            if dg.label not in self.reasons:
+                self.reasons[dg.label] = dg.detail + self.groups.why_not_facing(dg.label)
+
+    def order(self, groups: list[set[str]], items: list[Active]) -> list[set[str]]:
+        """The order to solve a segment's groups in: a group whose tracks move a body that
+        another group's constraints name first (the trunk before the head it carries, the
+        head before a hand that touches it: solved the other way round, the later group
+        moves the earlier one off its target). Otherwise (and in a cycle) hands and the
+        face first (a placed fingertip depends on its hand's shape), then groups driven
+        by morphs only, then by name (deterministic)."""
+
+        def key(g):
+            return (
+                not all(t.startswith(("hand", "face", "eyes")) for t in g),
+                any(it.driven.con is not None for it in items if it.driven.tracks & g),
+                sorted(g),
+            )
+
+        moved_by = self.schedule.moved_by
+        needs = [
+            set().union(
+                *(
+                    moved_by(it.driven.con)
+                    for it in items
+                    if it.driven.tracks & g and it.driven.con is not None
+                )
+            )
+            - g
+            for g in groups
+        ]
+        rest = sorted(range(len(groups)), key=lambda i: key(groups[i]))
+        out = []
+        while rest:
+            i = next(
+                (i for i in rest if not any(needs[i] & groups[j] for j in rest if j != i)), rest[0]
+            )
+            rest.remove(i)
+            out.append(groups[i])
+        return out
+
+    def recruit_trunk(self, groups, solved, items, before: np.ndarray, keys, t0: float):
+        """The limbs alone cannot meet some groups' constraints: the trunk helps them, as
+        little as it can (the chest nearest upright among the postures that meet them).
+        The groups met without it are then solved again on the moved trunk (it carries
+        them) rather than riding along: a look turns the head only as far as it needs. If
+        that fails, every active track is solved together with the trunk. Returns the
+        (groups, solved) kept: the first that meets everything, else the least violation."""
+        solve = self.groups.solve
+        # a group the score drives the trunk with joins the groups it helps
+        failed = [g for g, s in zip(groups, solved) if not s.converged or "spine" in g]
+        met = [g for g in groups if g not in failed]
+        helped = set().union(*failed) | {"spine"}
+        state = before.copy()
+        first_failed = next(i for i, g in enumerate(groups) if g in failed)
+        for g, s in zip(groups[:first_failed], solved):
+            self.take(state, g, s.qpos)  # solved before it: what the helped group builds on
+        first = solve(helped, items, state, keys, t0, upright=True)
+        out = [self.lean_less(first, helped, items, keys, t0)]
+        self.take(state, helped, out[0].qpos)
+        for g in met:
+            out.append(solve(g, items, state, keys, t0, reuse=False))
+            self.take(state, g, out[-1].qpos)
+        tries = [([helped, *met], out)]
+        if met and not all(s.converged for s in out):
+            group = set().union(*groups) | {"spine"}
+            tries.append(([group], [solve(group, items, before, keys, t0, upright=True)]))
+
+        def total(cand) -> float:
+            return sum(violation(s.result) for s in cand[1])
+
+        best = (groups, solved)
+        for cand in tries:
+            if all(s.converged for s in cand[1]):
+                return cand
+            if total(cand) < total(best):
+                best = cand
+        return best
+
+    def lean_less(self, solved: GroupSolve, group: set[str], items, keys, t0: float):
+        """Bring the trunk of a converged ``solved`` back toward neutral as far as the rest
+        of ``group`` can still meet the constraints without it: a bisection on the
+        fraction of the trunk's motion kept, the limbs solved again at each step from the
+        last posture that met them. A solve lands where its start leads; this finds the
+        least lean along the way it found. Returns the best solve."""
+        d = self.schedule.track_dofs.get("spine")
+        asked = any("spine" in it.driven.tracks for it in items if it.driven.tracks & group)
+        if not solved.converged or d is None or asked:  # the score places the trunk itself
+            return solved
+        home = self.schedule.home
+        lean = solved.qpos[d] - home[d]
+        if np.abs(lean).max() < SAME_POSTURE:
+            return solved
+        lo, hi, best = 0.0, 1.0, solved
+        for _ in range(LEAN_STEPS):
+            f = 0.5 * (lo + hi)
+            q = best.qpos.copy()
+            q[d] = home[d] + f * lean
+            s = self.groups.solve(
+                group, items, q, keys, t0, reuse=False, held=("spine",), restarts=0
+            )
+            if s.converged:
+                hi, best = f, GroupSolve(s.result, s.cons, solved.free)
+            else:
+                lo = f
+        return best
+
+    def relax(self, keys, state: np.ndarray, busy: set[str], active: set, t0, t1) -> None:
+        """The trunk and the head return to neutral over ``[t0, t1)`` when no block needs
+        them: none drives them, and none that they were recruited for (their last key's
+        constraints) is still ``active``."""
+        sched = self.schedule
+        for t in RELAXING:
+            d = sched.track_dofs.get(t)
+            if d is None or t in busy or not keys[t] or set(keys[t][-1].cons) & active:
+                continue
+            if np.allclose(keys[t][-1].q[d], sched.home[d], atol=SAME_POSTURE):
+                continue
+            state[d] = sched.home[d]
+            keys[t].append(Key(t0, t1, sched.home.copy(), (), sched.track_joints[t], relax=True))

@@ -1,0 +1,213 @@
+"""A realized score: frames, site positions, residual traces and solve statistics.
+
+:class:`Rollout` is what :func:`azee_mj.timeline.realize` returns; :func:`constraint_traces`
+measures every place / orient / look constraint of a schedule over its block's frames.
+
+Units: seconds, metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj import ik
+from azee_mj import score as sc
+from azee_mj.schedule import Mode, Schedule, TrackInterval
+from azee_mj.sites import SignerMap
+from azee_mj.timing import frame_range
+
+__all__ = [
+    "ConstraintTrace",
+    "Rollout",
+    "SolveStats",
+    "constraint_traces",
+    "site_positions",
+    "solve_stats",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class ConstraintTrace:
+    """The residual of one constraint over the frames of its block's interval.
+
+    Stored sparsely: ``active`` holds the residuals of frames ``first .. first +
+    len(active) - 1`` (those inside ``[start, end)``) of ``frames``; :attr:`values` is the
+    dense (frames,) view, NaN outside. Unit ``m`` or ``rad``.
+    """
+
+    block: str
+    index: int
+    kind: str
+    tol: float
+    unit: str
+    start: float
+    end: float
+    first: int
+    active: np.ndarray
+    frames: int
+    #: Why a constraint its key posture could not meet misses ("" if it was met).
+    reason: str = ""
+
+    @property
+    def values(self) -> np.ndarray:
+        """(frames,) residuals, NaN outside the block's frames (built on demand)."""
+        out = np.full(self.frames, np.nan)
+        out[self.first : self.first + len(self.active)] = self.active
+        return out
+
+    @property
+    def worst(self) -> float:
+        """The largest residual (NaN if a frame's residual is not finite: never ``ok``)."""
+        if not np.isfinite(self.active).all():
+            return float("nan")
+        return float(self.active.max()) if self.active.size else 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.worst <= self.tol
+
+    def describe(self) -> str:
+        """``BLOCK constraint i (kind): worst X mm (tol Y mm)``, in mm or degrees."""
+        k, u = (1000.0, "mm") if self.unit == "m" else (float(np.degrees(1.0)), "deg")
+        why = f": {self.reason}" if self.reason and not self.ok else ""
+        return (
+            f"{self.block} constraint {self.index} ({self.kind}): worst {self.worst * k:.2f}"
+            f" {u} (tol {self.tol * k:.2f} {u}){why}"
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class SolveStats:
+    """IK work done for a rollout: problems solved, iterations, and wall times [s]."""
+
+    problems: int
+    key_problems: int
+    iterations: int
+    not_converged: int
+    solve_time: float
+    total_time: float
+    per_problem_iterations: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class Rollout:
+    """A realized score.
+
+    Attributes:
+      time: (T,) frame times [s], ``k / fps``.
+      qpos: (T, nq) postures in ``signer.xml`` joint order.
+      site_names: (S,) AZee site names; ``site_pos`` (T, S, 3) their positions [m].
+      schedule: per track, the intervals blocks drive it.
+      traces: residual of every place / orient / look constraint over its interval.
+    """
+
+    fps: float
+    mode: Mode
+    time: np.ndarray
+    qpos: np.ndarray
+    site_names: tuple[str, ...]
+    site_pos: np.ndarray
+    schedule: Mapping[str, tuple[TrackInterval, ...]]
+    traces: tuple[ConstraintTrace, ...]
+    stats: SolveStats
+
+    def report(self) -> dict:
+        """The JSON report: residuals per constraint and block, and timings."""
+        s = self.stats
+        return {
+            "fps": self.fps,
+            "mode": self.mode.value,
+            "frames": len(self.time),
+            "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
+            "constraints": [
+                {
+                    "block": t.block,
+                    "index": t.index,
+                    "kind": t.kind,
+                    "unit": t.unit,
+                    "tol": float(t.tol),
+                    "worst": t.worst if np.isfinite(t.worst) else None,
+                    "ok": bool(t.ok),
+                    "reason": t.reason,
+                }
+                for t in self.traces
+            ],
+            "all_within_tolerance": bool(all(t.ok for t in self.traces)),
+            "schedule": {
+                k: [{"block": i.block, "start": i.start, "end": i.end} for i in v]
+                for k, v in self.schedule.items()
+            },
+            "stats": {
+                "ik_problems": s.problems,
+                "key_problems": s.key_problems,
+                "iterations": s.iterations,
+                "not_converged": s.not_converged,
+                "solve_time_s": s.solve_time,
+                "total_time_s": s.total_time,
+            },
+        }
+
+
+def constraint_traces(
+    schedule: Schedule, q: np.ndarray, times: np.ndarray, fps: float, reasons=None
+) -> tuple[ConstraintTrace, ...]:
+    """The residual of every place / orient / look constraint of ``schedule`` over the
+    frames ``q`` (T, nq) at ``times`` [s] inside its block; ``reasons`` (constraint label
+    -> why its key posture misses it) is said on the traces."""
+    reasons = reasons or {}
+    solver, comp, out = schedule.solver, schedule.comp, []
+    for b in schedule.blocks:
+        if b.kind is not sc.BlockKind.CSTR:
+            continue
+        for c in b.constraints:
+            ic = comp.constraint(c, f"{b.path}#{c.index}")
+            if ic is None:
+                continue
+            span = frame_range(b.start, b.end, fps, len(times))
+            vals = np.array([ic.residual(solver.at(q[f])) for f in span], float)
+            unit = "m" if isinstance(ic, cn.Place) else "rad"
+            kind = type(c).__name__.lower()
+            out.append(
+                ConstraintTrace(
+                    b.path,
+                    c.index,
+                    kind,
+                    ic.tol,
+                    unit,
+                    b.start,
+                    b.end,
+                    span.start,
+                    vals,
+                    len(times),
+                    reasons.get(ic.label, ""),
+                )
+            )
+    return tuple(out)
+
+
+def site_positions(solver: ik.Solver, smap: SignerMap, q: np.ndarray) -> np.ndarray:
+    """(T, S, 3) world positions [m] of the AZee sites of ``smap`` (in its order) at the
+    frames ``q`` (T, nq)."""
+    sids = np.array([solver.site_id(s) for s in smap.sites.values()])
+    out = np.empty((len(q), len(sids), 3))
+    for f in range(len(q)):
+        out[f] = solver.at(q[f]).d.site_xpos[sids]
+    return out
+
+
+def solve_stats(results, key_problems: int, total_time: float) -> SolveStats:
+    """The statistics of IK ``results`` (the first ``key_problems`` of them for key
+    postures), over a realization that took ``total_time`` [s]."""
+    return SolveStats(
+        problems=len(results),
+        key_problems=key_problems,
+        iterations=sum(x.iterations for x in results),
+        not_converged=sum(not x.converged for x in results),
+        solve_time=sum(x.time for x in results),
+        total_time=total_time,
+        per_problem_iterations=np.array([x.iterations for x in results]),
+    )

@@ -1,0 +1,74 @@
+"""Trills: a small sinusoidal shake of a site or a bone added on top of the frames, once
+every block's posture is realized (pass 3).
+
+:func:`trill_offset` and :func:`least_squares_step` are pure; :func:`add_trills` applies
+every trill of a schedule to the frames through the kinematics of each frame.
+
+Units: seconds, metres, radians, hertz.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from azee_mj import score as sc
+from azee_mj.ikadapter import IKAdapter
+from azee_mj.kinematics import compile_vector
+
+#: How long a trill's amplitude takes to ramp up at its start and down at its end [s].
+TRILL_RAMP = 0.05
+#: Damping of the least-squares step that moves a site or bone by a trill's offset.
+TRILL_DAMPING = 1e-6
+
+
+def trill_envelope(t: np.ndarray, start: float, end: float) -> np.ndarray:
+    """The amplitude fraction (0..1) at times ``t`` [s] of a trill over ``[start, end)``:
+    ramped linearly over ``TRILL_RAMP`` at both ends."""
+    return np.minimum(1.0, np.minimum(t - start, end - t) / TRILL_RAMP)
+
+
+def trill_offset(amplitude: float, frequency: float, envelope, t, start: float):
+    """The trill's displacement at time ``t`` [s] (in its amplitude's unit, m or rad):
+    ``amplitude * envelope * sin(2 pi frequency (t - start))``."""
+    return amplitude * envelope * np.sin(2 * np.pi * frequency * (t - start))
+
+
+def least_squares_step(J: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The least-norm joint step ``dq`` with ``J dq = target`` (damped by
+    ``TRILL_DAMPING``): ``J^T (J J^T + lambda I)^-1 target``."""
+    return J.T @ np.linalg.solve(J @ J.T + TRILL_DAMPING * np.eye(J.shape[0]), target)
+
+
+def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Every trill of the adapter's schedule added on top of the frames ``q`` (T, nq) at
+    ``times`` [s], in place: the trilled site or bone moves by the trill's offset along its
+    vector (a least-squares step of the tracks it drives, within the joint ranges); a
+    frame the shake would push through the body is solved back out, near the shake."""
+    sched, solver = adapter.schedule, adapter.solver
+    comp, smap = sched.comp, sched.smap
+    for b in sched.blocks:
+        if b.kind is not sc.BlockKind.CSTR:
+            continue
+        for c in b.constraints:
+            if not isinstance(c, sc.Trill):
+                continue
+            tracks = sorted(comp.tracks_of(c))
+            dofs = np.concatenate([sched.track_dofs[t] for t in tracks])
+            sel = np.flatnonzero((times >= b.start) & (times < b.end))
+            vector = compile_vector(c.vector, smap)
+            for f, env in zip(sel, trill_envelope(times[sel], b.start, b.end)):
+                k = adapter.at(q[f], jacobians=True)
+                v = k.value(vector)
+                v = v / np.linalg.norm(v)
+                a = trill_offset(c.amplitude, c.frequency, env, times[f], b.start)
+                if c.site is not None:
+                    jac = k.site(solver.site_id(comp.site(c.site)))[1]
+                else:
+                    jac = k.body_rot_jac(solver.body_id(c.bone.model_body(smap)))
+                dq = least_squares_step(jac[:, dofs], a * v)
+                q[f, dofs] = np.clip(q[f, dofs] + dq, solver.lower[dofs], solver.upper[dofs])
+                if adapter.penetrates(q[f], times[f]):  # the shake must not go through
+                    joints = {j for t in tracks for j in sched.track_joints[t]}
+                    soft = adapter.soft_targets(q[f], joints)
+                    q[f] = adapter.solve(soft, sorted(joints), q[f], times[f]).qpos
+    return q

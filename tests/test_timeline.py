@@ -14,7 +14,9 @@ from hypothesis import strategies as st
 
 from azee_mj import ik, timeline
 from azee_mj.check import check_poses
-from azee_mj.schedule import contact_pairs, make_solver
+from azee_mj.ikadapter import IKAdapter
+from azee_mj.keyposes import KeyPoser
+from azee_mj.schedule import Mode, Schedule, contact_pairs, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 
@@ -488,8 +490,8 @@ def test_schedule_intervals_lie_within_their_parents(solver, children):
             "root": {"name": "R", "kind": "sync", "start": 0, "end": 2.0, "children": children},
         }
     )
-    r = timeline.Realizer(score, solver, 25.0, timeline.Mode.MULTITRACK)
-    sched = r.schedule()
+    schedule = Schedule(score, solver)
+    sched = schedule.intervals()
     parents = {c.path: b for b in score.blocks() for c in b.children}
     for track, intervals in sched.items():
         for iv in intervals:
@@ -499,9 +501,9 @@ def test_schedule_intervals_lie_within_their_parents(solver, children):
             while p is not None:
                 assert p.start - 1e-9 <= iv.start and iv.end <= p.end + 1e-9
                 p = parents.get(p.path)
-            assert track in set().union(*(r.comp.tracks_of(c) for c in block.constraints))
+            assert track in set().union(*(schedule.comp.tracks_of(c) for c in block.constraints))
     # Keys of a track exactly cover the union of its blocks' intervals (in time order).
-    keys = r.key_postures()
+    keys = KeyPoser(IKAdapter(schedule), Mode.MULTITRACK).key_postures()
     for track, intervals in sched.items():
         covered = sorted((k.start, k.end) for k in keys[track])
         assert covered == sorted(set(covered))

@@ -1,0 +1,69 @@
+"""Pass 1 pieces: components, violation, and one group solved on the real signer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from azee_mj import ik
+from azee_mj.ikadapter import IKAdapter
+from azee_mj.keyposes import Active, GroupPoser, KeyPoser, components, violation
+from azee_mj.schedule import Mode, Schedule
+from azee_mj.score import load_score
+
+
+def _score(constraints, end=0.5):
+    return load_score(
+        {
+            "format": "azee-score",
+            "version": 1,
+            "root": {"name": "K", "kind": "cstr", "start": 0.0, "end": end,
+                     "constraints": constraints},
+        }
+    )  # fmt: skip
+
+
+def test_components_join_the_track_sets_that_share_a_track():
+    groups = components([{"arm_R"}, {"hand_R"}, {"arm_L", "arm_R"}, {"head"}, {"head", "eyes"}])
+    assert sorted(map(sorted, groups)) == [["arm_L", "arm_R"], ["eyes", "head"], ["hand_R"]]
+    assert components([]) == []
+
+
+def test_violation_sums_the_missed_tolerances_and_the_penetration():
+    def res(values, penetration=0.0):
+        residuals = tuple(ik.Residual(f"c{i}", "place", v, 1e-3, "m") for i, v in enumerate(values))
+        return ik.IKResult(np.zeros(1), False, residuals, penetration, 0, 0, 0.0, np.zeros(0))
+
+    assert violation(res([5e-4])) == 0.0  # met
+    assert violation(res([3e-3, 5e-4])) == pytest.approx(3.0)
+    assert violation(res([2e-3], penetration=5e-4)) == pytest.approx(2.5)
+
+
+def test_a_group_solve_meets_its_placement_on_the_signer(solver):
+    target = [0.3, -0.15, 1.2]
+    score = _score([{"type": "place", "site": "@I_TIP(s)", "at": target}])
+    adapter = IKAdapter(Schedule(score, solver))
+    poser = KeyPoser(adapter, Mode.MULTITRACK)
+    keys = poser.key_postures()
+    arm = keys["arm_R"]
+    assert len(arm) == 1 and (arm[0].start, arm[0].end) == (0.0, 0.5)
+    tip = solver.at(arm[0].q).d.site_xpos[solver.site_id("I_TIP_R")]
+    assert np.linalg.norm(tip - target) <= 1e-3
+    assert not keys["arm_L"] and not keys["head"]  # untouched tracks have no key
+    assert poser.reasons == {}
+    assert len(adapter.results) >= 1
+
+
+def test_a_group_still_held_is_kept_without_a_solve(solver):
+    score = _score([{"type": "place", "site": "@I_TIP(s)", "at": [0.3, -0.15, 1.2]}])
+    sched = Schedule(score, solver)
+    adapter = IKAdapter(sched)
+    keys = KeyPoser(adapter, Mode.MULTITRACK).key_postures()
+    before = len(adapter.results)
+    groups = GroupPoser(adapter)
+    (dc,) = sched.block_constraints(sched.blocks[0])
+    state = keys["arm_R"][0].q.copy()
+    kept = groups.solve({"arm_R"}, [Active(dc, False)], state, keys, 0.5)
+    assert kept.converged and kept.result.iterations == 0
+    np.testing.assert_array_equal(kept.qpos, state)
+    assert len(adapter.results) == before

@@ -26,20 +26,16 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik, reach
 from azee_mj import score as sc
-from azee_mj.blend import SAME_POSTURE, Key
+from azee_mj.blend import EPS, SAME_POSTURE, Key
 from azee_mj.diagnose import diagnose
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.preferences import Preferences, widened
-from azee_mj.schedule import DrivenConstraint, Mode
+from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
 #: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
 LEAN_STEPS = 5
 #: Tracks that return to neutral when no block needs them.
 RELAXING = ("spine", "head")
-#: Tracks the flattened mode never moves as part of the whole body.
-FLAT_FIXED = ("face", "eyes")
-#: Two times closer than this are the same instant [s].
-EPS = 1e-9
 
 
 @dataclasses.dataclass(frozen=True)

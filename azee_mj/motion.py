@@ -38,7 +38,7 @@ from azee_mj.framesolver import (
 )
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.routes import arc_through, path_points
-from azee_mj.schedule import Mode
+from azee_mj.schedule import FLAT_FIXED, Mode
 from azee_mj.timing import frame_count
 from azee_mj.trills import add_trills
 
@@ -64,8 +64,6 @@ __all__ = [
 
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
 FLAT_PATH_KEYS = 6
-#: Tracks the flattened mode never moves as part of the whole body.
-FLAT_FIXED = ("face", "eyes")
 
 
 class Motion:

@@ -26,6 +26,7 @@ from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timing import frame_range
 
 __all__ = [
+    "FLAT_FIXED",
     "Compiler",
     "ContactWindow",
     "DrivenConstraint",
@@ -48,6 +49,10 @@ class Mode(enum.Enum):
 
     MULTITRACK = "multitrack"
     FLATTENED = "flattened"
+
+
+#: Tracks the flattened mode never moves as part of the whole body.
+FLAT_FIXED = ("face", "eyes")
 
 
 #: How dear moving a track's joints is, relative to an arm joint (1): the trunk and neck are

@@ -20,10 +20,15 @@ def _adapter(solver, constraints=()) -> IKAdapter:
         {
             "format": "azee-score",
             "version": 1,
-            "root": {"name": "F", "kind": "cstr", "start": 0.0, "end": 1.0,
-                     "constraints": list(constraints)},
+            "root": {
+                "name": "F",
+                "kind": "cstr",
+                "start": 0.0,
+                "end": 1.0,
+                "constraints": list(constraints),
+            },
         }
-    )  # fmt: skip
+    )
     return IKAdapter(Schedule(score, solver))
 
 

@@ -17,10 +17,15 @@ def _score(constraints, end=0.5):
         {
             "format": "azee-score",
             "version": 1,
-            "root": {"name": "K", "kind": "cstr", "start": 0.0, "end": end,
-                     "constraints": constraints},
+            "root": {
+                "name": "K",
+                "kind": "cstr",
+                "start": 0.0,
+                "end": end,
+                "constraints": constraints,
+            },
         }
-    )  # fmt: skip
+    )
 
 
 def test_components_join_the_track_sets_that_share_a_track():

@@ -20,12 +20,26 @@ def schedule(solver) -> Schedule:
         {
             "format": "azee-score",
             "version": 1,
-            "root": {"name": "S", "kind": "sync", "start": 0.0, "end": 0.4, "children": [
-                {"name": "R", "kind": "cstr", "start": 0.1, "end": 0.3,
-                 "constraints": [{"type": "place", "site": "@I_TIP(s)", "at": TARGET},
-                                 {"type": "morph", "id": "flat", "side": "s", "weight": 1.0}]}]},
+            "root": {
+                "name": "S",
+                "kind": "sync",
+                "start": 0.0,
+                "end": 0.4,
+                "children": [
+                    {
+                        "name": "R",
+                        "kind": "cstr",
+                        "start": 0.1,
+                        "end": 0.3,
+                        "constraints": [
+                            {"type": "place", "site": "@I_TIP(s)", "at": TARGET},
+                            {"type": "morph", "id": "flat", "side": "s", "weight": 1.0},
+                        ],
+                    }
+                ],
+            },
         }
-    )  # fmt: skip
+    )
     return Schedule(score, solver)
 
 

@@ -55,12 +55,17 @@ def test_a_site_trill_moves_the_site_along_its_vector(solver):
                 "start": 0.0,
                 "end": 0.5,
                 "constraints": [
-                    {"type": "trill", "site": "@I_TIP(s)", "vector": "fwd", "amplitude": 0.01,
-                     "frequency": 4},
+                    {
+                        "type": "trill",
+                        "site": "@I_TIP(s)",
+                        "vector": "fwd",
+                        "amplitude": 0.01,
+                        "frequency": 4,
+                    },
                 ],
             },
         }
-    )  # fmt: skip
+    )
     adapter = IKAdapter(Schedule(score, solver))
     times = np.arange(50) / FPS
     q0 = np.tile(solver.natural, (len(times), 1))

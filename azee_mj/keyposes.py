@@ -98,8 +98,7 @@ class GroupPoser:
 
     def __init__(self, adapter: IKAdapter):
         self.adapter, self.schedule = adapter, adapter.schedule
-        self.anatomy = self.schedule.anatomy
-        self.prefs = Preferences(adapter.solver, self.anatomy, self.schedule.smap)
+        self.prefs = Preferences(adapter.solver, self.schedule.anatomy, self.schedule.smap)
         #: facing label -> the face-to-face solve dropped for the placement alone
         self.unfaced: dict[str, Unfaced] = {}
 
@@ -149,7 +148,7 @@ class GroupPoser:
         ``upright``: the trunk was recruited; among the postures that meet the
         constraints, the one with the chest nearest upright is preferred. ``restarts``:
         the solver's, if None."""
-        ad, prefs, anatomy = self.adapter, self.prefs, self.anatomy
+        ad, prefs, anatomy = self.adapter, self.prefs, self.schedule.anatomy
         mine = [it for it in items if it.driven.tracks & group]
         cons = self.constraints(mine)
         joints = self.schedule.track_joints
@@ -222,7 +221,7 @@ class GroupPoser:
             problem,
             s.result,
             kept.start,
-            self.anatomy.limb_root,
+            self.schedule.anatomy.limb_root,
             only=f"{label}:facing",
         )
         return f"; face to face, {why[0].detail}" if why else ""

@@ -9,8 +9,6 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from azee_mj import constraints as cn
@@ -32,58 +30,22 @@ class IKAdapter:
         self.solver = schedule.solver
         self.results: list[ik.IKResult] = []
 
-    def problem(
-        self,
-        cons,
-        free,
-        q0,
-        t: float,
-        seeds=(),
-        max_change=None,
-        natural: bool = True,
-        preferences=(),
-    ) -> ik.IKProblem:
+    def problem(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKProblem:
         """The problem of constraints ``cons`` moving joints ``free`` from ``q0`` (nq,)
-        (and ``seeds``, other starts) at time ``t`` [s], each joint within ``max_change`` of
-        ``q0``, with ``preferences`` joining the naturalness (see :class:`~azee_mj.ik.IKProblem`)."""
+        (and ``seeds``, other starts) at time ``t`` [s], the body pairs its contacts bring
+        together allowed to touch. ``fields`` are the other
+        :class:`~azee_mj.ik.IKProblem` fields (``max_change``, ``natural``,
+        ``preferences``, ``restarts``, ``bounds``, ``prefer``: ``q0`` unless given)."""
         names = self.schedule.body_names
         touching = tuple((names[a], names[b]) for a, b in self.schedule.allowed_at(t) if a < b)
-        return ik.IKProblem(
-            tuple(cons),
-            tuple(free),
-            touching,
-            q0,
-            tuple(seeds),
-            max_change,
-            natural,
-            preferences=tuple(preferences),
-        )
+        fields = {"prefer": q0, **fields}
+        if "preferences" in fields:
+            fields["preferences"] = tuple(fields["preferences"])
+        return ik.IKProblem(tuple(cons), tuple(free), touching, seeds=tuple(seeds), **fields)
 
-    def solve(
-        self,
-        cons,
-        free,
-        q0,
-        t: float,
-        seeds=(),
-        max_change=None,
-        natural: bool = True,
-        preferences=(),
-        restarts=None,
-        prefer=None,
-        bounds=None,
-    ) -> ik.IKResult:
-        """Solve :meth:`problem`, with the solver's ``restarts`` unless given, preferring
-        posture ``prefer`` and inside ``bounds`` ((lower, upper), each (nq,)) if given; the
-        result is kept in ``results``."""
-        problem = self.problem(cons, free, q0, t, seeds, max_change, natural, preferences)
-        if bounds is not None:
-            problem = dataclasses.replace(problem, bounds=bounds)
-        if restarts is not None:
-            problem = dataclasses.replace(problem, restarts=restarts)
-        if prefer is not None:
-            problem = dataclasses.replace(problem, prefer=prefer)
-        res = self.solver.solve(problem, q0)
+    def solve(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKResult:
+        """Solve :meth:`problem` from ``q0``; the result is kept in ``results``."""
+        res = self.solver.solve(self.problem(cons, free, q0, t, seeds, **fields), q0)
         self.results.append(res)
         return res
 

@@ -41,6 +41,25 @@ def exact_time(t: float) -> float:
     return round(t * _PER_SECOND) / _PER_SECOND
 
 
+def root_span(start: float, end: float) -> tuple[float, float]:
+    """Absolute ``(start, end)`` [s] of the root block written from ``start`` to ``end``: it
+    starts at 0."""
+    return 0.0, exact_time(end - start)
+
+
+def child_span(
+    start: float, end: float, parent_start: float, parent_end: float | None
+) -> tuple[float, float]:
+    """Absolute ``(start, end)`` [s] of a block written from ``start`` to ``end`` relative to
+    its parent's absolute ``parent_start``: on the :data:`TIME_STEP` grid and kept within
+    ``[parent_start, parent_end]`` (no upper bound if ``parent_end`` is None)."""
+    lo, hi = parent_start, parent_end if parent_end is not None else math.inf
+    return (
+        min(max(exact_time(parent_start + start), lo), hi),
+        min(max(exact_time(parent_start + end), lo), hi),
+    )
+
+
 def first_frame(t: float, fps: float) -> int:
     """Index of the first frame at or after time ``t`` [s] (a frame within 1e-6 frame of
     ``t`` counts as at ``t``)."""

@@ -30,6 +30,8 @@ _PER_SECOND = 1_000_000  # steps per second: k / 1e6 is the correctly rounded ti
 MAX_DURATION = 3600.0
 #: Most frames in one rollout (1 hour at 50 fps, first and last frame included).
 MAX_FRAMES = 180_001
+#: Frame rate of a realized rollout unless one is given [frames/s].
+DEFAULT_FPS = 50.0
 #: Frame rates accepted [frames/s].
 MIN_FPS, MAX_FPS = 1.0, 1000.0
 #: A frame this close (in frames) to a boundary is on it.

@@ -533,13 +533,12 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
-    parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        install_signal_handlers()
+        install_signal_handlers()  # before the parser imports the renderer (about 1 s)
     except ValueError:  # not the main thread: signals stay as they are
         pass
     try:
+        args = build_parser().parse_args(argv)
         with contextlib.ExitStack() as cleanup:
             return args.func(args, _Run(cleanup))
     except AzeeError as e:

@@ -13,36 +13,58 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import os
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from azee_mj.errors import AzeeError, printable, shorten
-
-if TYPE_CHECKING:
-    from azee_mj.markers import Clip
-
+from azee_mj.timing import DEFAULT_FPS
 
 #: Exit statuses (see the module docstring).
 EXIT_OK, EXIT_FINDINGS, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 
 
+@dataclasses.dataclass(frozen=True)
+class _Run:
+    """What one command carries besides its options: ``cleanup`` holds the temporary files it
+    makes until it ends."""
+
+    cleanup: contextlib.ExitStack
+
+    def score_path(self, path: str | None, lexicon: Sequence[str] | None) -> str | None:
+        """A score argument as a JSON path: a ``.azee`` expression is compiled (with the
+        ``lexicon`` directories) to ``STEM.json`` in a temporary directory that lives until
+        the command ends; any other path is returned as it is."""
+        if path is None or Path(path).suffix.lower() != ".azee":
+            return path
+        from azee_mj.azee import compile_file, dump_score
+
+        score = compile_file(path, lexicon=lexicon or ())
+        tmp = Path(self.cleanup.enter_context(tempfile.TemporaryDirectory(prefix="azee-mj-")))
+        out = tmp / f"{Path(path).stem}.json"
+        out.write_text(dump_score(score), encoding="utf-8")
+        return str(out)
+
+
 def _outputs(
-    args, outputs: tuple[str, ...], inputs: tuple[str, ...], directory: bool = False
+    outputs: Sequence[str | None],
+    inputs: Sequence[str | None],
+    lexicon: Sequence[str] | None,
+    directory: bool = False,
 ) -> None:
-    """The one output check of every writing command, before any work: each option named in
-    ``outputs`` (e.g. ``output``, ``report``) that is set must be writable and differ from
-    every input option named in ``inputs`` and from every sign file of the ``--lexicon``
-    directories (see :func:`azee_mj.files.check_output`)."""
+    """The one output check of every writing command, before any work: each output path
+    given (e.g. ``--output``, ``--report``) must be writable and differ from every input
+    path given and from every sign file of the ``lexicon`` directories (see
+    :func:`azee_mj.files.check_output`)."""
     from azee_mj.files import check_output
 
-    given = [getattr(args, k) for k in inputs if getattr(args, k, None)] + _lexicon_files(args)
-    paths = [getattr(args, k) for k in outputs if getattr(args, k, None)]
+    given = [p for p in inputs if p] + _lexicon_files(lexicon)
+    paths = [p for p in outputs if p]
     for p in paths:
         check_output(p, given, directory=directory)
     real = [os.path.realpath(p) for p in paths]
@@ -50,18 +72,18 @@ def _outputs(
         raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
 
 
-def _lexicon_files(args) -> list[Path]:
+def _lexicon_files(lexicon: Sequence[str] | None) -> list[Path]:
     """The sign files of the ``--lexicon`` directories (inputs no output may replace)."""
     return [
         p
-        for d in getattr(args, "lexicon", None) or ()
+        for d in lexicon or ()
         if os.path.isdir(d)
         for p in Path(d).iterdir()
         if p.suffix in (".json", ".azee")
     ]
 
 
-def _cmd_sites(args) -> int:
+def _cmd_sites(args, run: _Run) -> int:
     from azee_mj.sites import DEFAULT_MAP
 
     if args.json:
@@ -80,21 +102,6 @@ def _cmd_sites(args) -> int:
     return 0
 
 
-def _score_arg(path: str | None, args) -> str | None:
-    """A score argument as a JSON path: a ``.azee`` expression is compiled (with the
-    command's ``--lexicon`` directories) to ``STEM.json`` in a temporary directory that lives
-    until the command ends; any other path is returned as it is."""
-    if path is None or Path(path).suffix.lower() != ".azee":
-        return path
-    from azee_mj.azee import compile_file, dump_score
-
-    score = compile_file(path, lexicon=getattr(args, "lexicon", None) or ())
-    tmp = Path(args.cleanup.enter_context(tempfile.TemporaryDirectory(prefix="azee-mj-")))
-    out = tmp / f"{Path(path).stem}.json"
-    out.write_text(dump_score(score), encoding="utf-8")
-    return str(out)
-
-
 def _add_lexicon(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--lexicon",
@@ -105,13 +112,13 @@ def _add_lexicon(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _cmd_compile(args) -> int:
+def _cmd_compile(args, run: _Run) -> int:
     from azee_mj.azee import compile_file, compile_text, dump_score
     from azee_mj.files import atomic_path
 
     if (args.input is None) == (args.e is None):
         raise AzeeError("compile: give one EXPR.azee file or -e TEXT")
-    _outputs(args, ("output",), ("input",))
+    _outputs((args.output,), (args.input,), args.lexicon)
     lex = args.lexicon or ()
     if args.e is not None:
         score = compile_text(args.e, args.strong_side, lex, file="<-e>")
@@ -131,7 +138,7 @@ def _cmd_compile(args) -> int:
     return 0
 
 
-def _cmd_rules(args) -> int:
+def _cmd_rules(args, run: _Run) -> int:
     from azee_mj.azee import RULES, Lexicon, rules_catalogue
 
     lex = Lexicon(args.lexicon or ())
@@ -157,7 +164,7 @@ def _v(v) -> str:
     return "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"
 
 
-def _cmd_check(args) -> int:
+def _cmd_check(args, run: _Run) -> int:
     from azee_mj.check import check_poses, summary
     from azee_mj.model import load_model
     from azee_mj.rollout_io import load_rollout
@@ -169,7 +176,7 @@ def _cmd_check(args) -> int:
         from azee_mj.schedule import contact_pairs, make_solver
         from azee_mj.score import load_score
 
-        score, solver = load_score(_score_arg(args.score, args)), make_solver()
+        score, solver = load_score(run.score_path(args.score, args.lexicon)), make_solver()
         allowed = contact_pairs(score, rollout.time, solver)
     report = check_poses(model, rollout.qpos, allowed=allowed)
     print(summary(report, rollout.fps))
@@ -201,7 +208,7 @@ class _Progress:
             )
 
 
-def _cmd_realize(args) -> int:
+def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.batch import summary_lines
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
@@ -214,13 +221,13 @@ def _cmd_realize(args) -> int:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
     if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
         return _realize_many(args)
-    args.score = args.score[0]
-    _outputs(args, ("output", "report"), ("score",))
-    score = load_score(_score_arg(args.score, args))
+    path = args.score[0]
+    _outputs((args.output, args.report), (path,), args.lexicon)
+    score = load_score(run.score_path(path, args.lexicon))
     rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
-    save_rollout(args.output, rollout, inputs=(args.score,))
+    save_rollout(args.output, rollout, inputs=(path,))
     if args.report:
-        save_json(args.report, rollout.report(), inputs=(args.score, args.output))
+        save_json(args.report, rollout.report(), inputs=(path, args.output))
     print("\n".join(summary_lines(args.output, rollout, args.fps)))
     return 1 if args.strict and any(not t.ok for t in rollout.traces) else 0
 
@@ -250,7 +257,7 @@ def _realize_many(args) -> int:
     if args.report:
         check_output_dir(args.report)
     jobs = plan(scores, Path(args.output), Path(args.report) if args.report else None)
-    inputs = [*scores, *_lexicon_files(args)]
+    inputs = [*scores, *_lexicon_files(args.lexicon)]
     for j in jobs:
         for out in (j.output, j.report):
             if out is not None:
@@ -272,68 +279,40 @@ def _realize_many(args) -> int:
     return EXIT_FINDINGS if args.strict and any(o.missed for o in outcomes) else EXIT_OK
 
 
-def load_clip(
-    path: str | os.PathLike,
-    *,
-    score: str | os.PathLike | None = None,
-    fps: float = 50.0,
-    progress: Callable[[float], None] | None = None,
-) -> Clip:
-    """A clip from ``SCORE.json`` (realized at ``fps``) or ``ROLLOUT.npz`` (with an optional
-    ``score`` for targets and the schedule)."""
-    from azee_mj import score as sc
-    from azee_mj.markers import Clip, schedule_of, shared_solver
-    from azee_mj.model import load_model
-    from azee_mj.rollout_io import load_rollout
-    from azee_mj.timeline import realize
-
-    path = Path(path)
-    if path.suffix.lower() == ".json":
-        s = sc.load_score(path)
-        rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
-        return Clip.from_rollout(rollout, s, path.stem)
-    if path.suffix.lower() != ".npz":
-        raise AzeeError(
-            f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix {path.suffix!r}"
-        )
-    r = load_rollout(path, load_model().nq)
-    given = sc.load_score(Path(score)) if score else None
-    sched = schedule_of(given) if given is not None else {}
-    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
-
-
-def _clip(args, progress: bool = True):
+def _clip(args, run: _Run, progress: bool = True):
+    """The clip of ``preview`` and ``render``: their input (and ``--score``), a score
+    realized at ``--fps`` (default :data:`~azee_mj.timing.DEFAULT_FPS`)."""
+    from azee_mj.markers import load_clip
     from azee_mj.timing import check_fps
 
     if args.fps is not None:
         check_fps(args.fps)
-    realize_fps = args.fps or 50.0
-    score = _score_arg(getattr(args, "score", None), args)
+    score = run.score_path(args.score, args.lexicon)
     return load_clip(
-        _score_arg(args.input, args),
+        run.score_path(args.input, args.lexicon),
         score=score,
-        fps=realize_fps,
+        fps=args.fps or DEFAULT_FPS,
         progress=_Progress("realize") if progress else None,
     )
 
 
-def _cmd_preview(args) -> int:
+def _cmd_preview(args, run: _Run) -> int:
     from azee_mj.viewer import preview
 
-    clip = _clip(args)
+    clip = _clip(args, run)
     n = preview(clip, targets=not args.no_targets, max_frames=args.max_frames, camera=args.camera)
     if args.max_frames is not None:
         print(f"preview: {n} viewer updates")
     return 0
 
 
-def _cmd_render(args) -> int:
+def _cmd_render(args, run: _Run) -> int:
     from azee_mj.render import check_render_options, parse_size, render
 
     size = parse_size(args.size)
     check_render_options(args.output, size, args.fps, args.time, args.jobs)  # before realizing
-    _outputs(args, ("output",), ("input", "score"))
-    clip = _clip(args)
+    _outputs((args.output,), (args.input, args.score), args.lexicon)
+    clip = _clip(args, run)
     out = render(
         clip,
         args.output,
@@ -350,32 +329,41 @@ def _cmd_render(args) -> int:
     return 0
 
 
-def _cmd_report(args) -> int:
+def _cmd_report(args, run: _Run) -> int:
     from azee_mj.report import write_report
     from azee_mj.timing import check_fps
 
-    fps = 50.0 if args.fps is None else check_fps(args.fps)
+    fps = check_fps(args.fps)
     as_dir = args.output.endswith(("/", os.sep)) or Path(args.output).is_dir()
-    _outputs(args, ("output",), ("score",), directory=as_dir)
+    _outputs((args.output,), (args.score,), args.lexicon, directory=as_dir)
     paths = write_report(
-        _score_arg(args.score, args), args.output, fps=fps, progress=_Progress("report")
+        run.score_path(args.score, args.lexicon),
+        args.output,
+        fps=fps,
+        progress=_Progress("report"),
     )
     for p in paths:
         print(f"{p}: written")
     return 0
 
 
-def _cmd_export(args) -> int:
+def _cmd_export(args, run: _Run) -> int:
     from azee_mj.export import export
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
-    _outputs(args, ("output",), ("input", "score"))
+    _outputs((args.output,), (args.input, args.score), args.lexicon)
     out = export(
-        _score_arg(args.input, args), args.output, score=_score_arg(args.score, args), fps=args.fps
+        run.score_path(args.input, args.lexicon),
+        args.output,
+        score=run.score_path(args.score, args.lexicon),
+        fps=args.fps,
     )
     print(f"{out}: written")
     return 0
+
+
+_FPS_DEFAULT = f"(default {DEFAULT_FPS:g})"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -420,7 +408,9 @@ def build_parser() -> argparse.ArgumentParser:
         required=True,
         help="OUT.npz, or an existing DIR/ for NAME.npz of each score",
     )
-    r.add_argument("--fps", type=float, default=50.0, help="frames per second (default 50)")
+    r.add_argument(
+        "--fps", type=float, default=DEFAULT_FPS, help=f"frames per second {_FPS_DEFAULT}"
+    )
     r.add_argument(
         "--mode",
         choices=["multitrack", "flattened"],
@@ -461,7 +451,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     v.add_argument("--score", help="the score of a ROLLOUT.npz, to draw its targets")
     _add_lexicon(v)
-    v.add_argument("--fps", type=float, help="frames per second when realizing (default 50)")
+    v.add_argument("--fps", type=float, help=f"frames per second when realizing {_FPS_DEFAULT}")
     v.add_argument("--camera", choices=CAMERAS, help="start from a fixed camera (default: free)")
     v.add_argument("--no-targets", action="store_true", help="do not draw constraint targets")
     v.add_argument("--max-frames", type=int, help=argparse.SUPPRESS)  # for tests
@@ -518,8 +508,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument(
         "--fps",
         type=float,
-        default=50.0,
-        help="frames per second when realizing a score (default 50)",
+        default=DEFAULT_FPS,
+        help=f"frames per second when realizing a score {_FPS_DEFAULT}",
     )
     e.set_defaults(func=_cmd_export)
 
@@ -527,7 +517,9 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("score", help="SCORE.json or EXPR.azee")
     _add_lexicon(h)
     h.add_argument("-o", "--output", required=True, help="REPORT.html, or DIR/ for PNG files")
-    h.add_argument("--fps", type=float, help="frames per second (default 50)")
+    h.add_argument(
+        "--fps", type=float, default=DEFAULT_FPS, help=f"frames per second {_FPS_DEFAULT}"
+    )
     h.set_defaults(func=_cmd_report)
     return p
 
@@ -541,15 +533,14 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
-    parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        install_signal_handlers()
+        install_signal_handlers()  # before the parser imports the renderer (about 1 s)
     except ValueError:  # not the main thread: signals stay as they are
         pass
     try:
-        with contextlib.ExitStack() as args.cleanup:
-            return args.func(args)
+        args = build_parser().parse_args(argv)
+        with contextlib.ExitStack() as cleanup:
+            return args.func(args, _Run(cleanup))
     except AzeeError as e:
         print(f"azee-mj: error: {printable(str(e))}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -579,6 +570,16 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+def __getattr__(name: str):
+    """``load_clip`` is :func:`azee_mj.markers.load_clip`, imported when first asked for (the
+    command line itself starts without the realizing modules)."""
+    if name == "load_clip":
+        from azee_mj.markers import load_clip
+
+        return load_clip
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 if __name__ == "__main__":

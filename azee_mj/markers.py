@@ -1,15 +1,18 @@
 """What to draw over a frame, without a window or a GL context.
 
-:class:`Clip` is a motion to show (a rollout, with or without its score). :func:`markers`
-lists what to draw over one frame (constraint targets, red where a constraint is over its
-tolerance, penetrating contacts) as :class:`Marker` records, and :func:`add_markers` turns
-them into ``mjvGeom`` s of an ``mjvScene``. Units: metres, seconds.
+:class:`Clip` is a motion to show (a rollout, with or without its score), read by
+:func:`load_clip` from a score or a rollout file. :func:`markers` lists what to draw over one
+frame (constraint targets, red where a constraint is over its tolerance, penetrating
+contacts) as :class:`Marker` records, and :func:`add_markers` turns them into ``mjvGeom`` s
+of an ``mjvScene``. Units: metres, seconds.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -17,9 +20,14 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
+from azee_mj.errors import AzeeError
 from azee_mj.kinematics import Unit
+from azee_mj.model import load_model
+from azee_mj.rollout_io import load_rollout
 from azee_mj.schedule import Compiler, TrackInterval, make_solver, schedule
 from azee_mj.sites import DEFAULT_MAP, SignerMap
+from azee_mj.timeline import realize
+from azee_mj.timing import DEFAULT_FPS
 
 #: Contacts deeper than this are drawn red [m] (the IK solver's penetration limit).
 PENETRATION = cn.PENETRATION_LIMIT
@@ -97,6 +105,30 @@ def shared_solver() -> ik.Solver:
     if _SOLVER is None:
         _SOLVER = make_solver()
     return _SOLVER
+
+
+def load_clip(
+    path: str | os.PathLike,
+    *,
+    score: str | os.PathLike | None = None,
+    fps: float = DEFAULT_FPS,
+    progress: Callable[[float], None] | None = None,
+) -> Clip:
+    """A clip from ``SCORE.json`` (realized at ``fps`` [frames/s]) or ``ROLLOUT.npz`` (with
+    an optional ``score`` for targets and the schedule)."""
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        s = sc.load_score(path)
+        rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
+        return Clip.from_rollout(rollout, s, path.stem)
+    if path.suffix.lower() != ".npz":
+        raise AzeeError(
+            f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix {path.suffix!r}"
+        )
+    r = load_rollout(path, load_model().nq)
+    given = sc.load_score(Path(score)) if score else None
+    sched = schedule_of(given) if given is not None else {}
+    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
 
 
 # ---------------------------------------------------------------------------------------

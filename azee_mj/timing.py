@@ -30,6 +30,8 @@ _PER_SECOND = 1_000_000  # steps per second: k / 1e6 is the correctly rounded ti
 MAX_DURATION = 3600.0
 #: Most frames in one rollout (1 hour at 50 fps, first and last frame included).
 MAX_FRAMES = 180_001
+#: Frame rate of a realized rollout unless one is given [frames/s].
+DEFAULT_FPS = 50.0
 #: Frame rates accepted [frames/s].
 MIN_FPS, MAX_FPS = 1.0, 1000.0
 #: A frame this close (in frames) to a boundary is on it.
@@ -39,6 +41,25 @@ _FRAME_SLACK = 1e-6
 def exact_time(t: float) -> float:
     """``t`` [s] rounded to :data:`TIME_STEP` (the one place absolute block times are made)."""
     return round(t * _PER_SECOND) / _PER_SECOND
+
+
+def root_span(start: float, end: float) -> tuple[float, float]:
+    """Absolute ``(start, end)`` [s] of the root block written from ``start`` to ``end``: it
+    starts at 0."""
+    return 0.0, exact_time(end - start)
+
+
+def child_span(
+    start: float, end: float, parent_start: float, parent_end: float | None
+) -> tuple[float, float]:
+    """Absolute ``(start, end)`` [s] of a block written from ``start`` to ``end`` relative to
+    its parent's absolute ``parent_start``: on the :data:`TIME_STEP` grid and kept within
+    ``[parent_start, parent_end]`` (no upper bound if ``parent_end`` is None)."""
+    lo, hi = parent_start, parent_end if parent_end is not None else math.inf
+    return (
+        min(max(exact_time(parent_start + start), lo), hi),
+        min(max(exact_time(parent_start + end), lo), hi),
+    )
 
 
 def first_frame(t: float, fps: float) -> int:

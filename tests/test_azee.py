@@ -378,11 +378,6 @@ REALIZED = list(
 )
 
 
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
-
-
 @pytest.mark.parametrize("text", REALIZED)
 def test_compiled_scores_realize_within_tolerance(text, model):
     s = compile_text(text)
@@ -778,6 +773,7 @@ def test_a_handshape_and_another_morph_add():
     assert q == pytest.approx(0.5 * 1.45, abs=0.02)
 
 
+@pytest.mark.extra("plot", "render")
 def test_cli_render_and_report_take_azee(tmp_path, capsys):
     from azee_mj import render
     from azee_mj.errors import AzeeError

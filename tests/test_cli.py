@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from azee_mj import __version__
-from azee_mj.cli import main
+from azee_mj.cli import build_parser, main
 from azee_mj.sites import DEFAULT_MAP
+from azee_mj.timing import DEFAULT_FPS
 
 DATA = Path(__file__).parent / "data"
 
@@ -395,3 +396,17 @@ def test_realize_many_strict_exits_1_on_a_miss_and_2_on_a_bad_score(tmp_path, ca
     text = capsys.readouterr().out
     assert "  FAR constraint 1 (place): worst " in text and ": out of reach by " in text
     assert main(["realize", str(_bad_score(tmp_path)), *both, "--strict"]) == 2
+
+
+def test_every_command_realizing_a_score_defaults_to_timing_default_fps(capsys):
+    parser = build_parser()
+    for argv in (
+        ["realize", "s.json", "-o", "o.npz"],
+        ["export", "s.json", "-o", "o.csv"],
+        ["report", "s.json", "-o", "r.html"],
+    ):
+        assert parser.parse_args(argv).fps == DEFAULT_FPS, argv
+    for command in ("realize", "export", "report", "preview"):
+        with pytest.raises(SystemExit):
+            parser.parse_args([command, "--help"])
+        assert f"(default {DEFAULT_FPS:g})" in " ".join(capsys.readouterr().out.split()), command

@@ -5,15 +5,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from azee_mj import load_model
 from azee_mj.ergonomics import ergonomics, table_a, table_b, table_c
 
 DEG = np.pi / 180.0
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
 
 
 @pytest.fixture(scope="module")

@@ -13,18 +13,12 @@ import numpy as np
 import pytest
 
 from azee_mj.check import check_poses
-from azee_mj.model import load_model
 from azee_mj.schedule import contact_pairs, make_solver
 from azee_mj.timeline import realize
 
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 NAMES = sorted(p.stem for p in EXAMPLES.glob("*.json"))
 FPS = 25.0
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
 
 
 def test_examples_exist():

@@ -23,7 +23,7 @@ from azee_mj.export import pose as pose_mod
 from azee_mj.export.csv import columns
 from azee_mj.export.gltf import srgb_to_linear
 from azee_mj.export.player import camera_pose
-from azee_mj.model import SCENE_PATH, load_model
+from azee_mj.model import SCENE_PATH
 from azee_mj.schedule import schedule
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
@@ -32,11 +32,6 @@ from azee_mj.timeline import realize
 ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).parent / "data"
 EXAMPLE = ROOT / "examples" / "info-about.json"  # both hands, gaze, face, holds
-
-
-@pytest.fixture(scope="module")
-def model() -> mujoco.MjModel:
-    return load_model()
 
 
 @pytest.fixture(scope="module")
@@ -124,6 +119,7 @@ def _world_transforms(g, k: int) -> dict[int, np.ndarray]:
 
 
 @pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+@pytest.mark.extra("export")
 def test_gltf_node_world_transforms_match_mujoco_on_every_frame(model, motion, tmp_path, suffix):
     import pygltflib
 
@@ -148,6 +144,7 @@ def test_gltf_node_world_transforms_match_mujoco_on_every_frame(model, motion, t
     assert worst_p < 1e-5 and worst_r < 1e-5, (worst_p, worst_r)
 
 
+@pytest.mark.extra("export")
 def test_gltf_channels_rotate_hinged_bodies_and_translate_sliding_ones(model, realized, tmp_path):
     import pygltflib
 
@@ -169,6 +166,7 @@ def test_gltf_channels_rotate_hinged_bodies_and_translate_sliding_ones(model, re
     assert all(s.interpolation == "LINEAR" for s in g.animations[0].samplers)
 
 
+@pytest.mark.extra("export")
 def test_gltf_meshes_are_the_visual_geoms_on_their_surfaces_with_their_colours(model, tmp_path):
     import pygltflib
 
@@ -234,6 +232,7 @@ def test_gltf_meshes_are_the_visual_geoms_on_their_surfaces_with_their_colours(m
 # ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.extra("export")
 def test_bvh_forward_kinematics_through_bvhio_matches_the_bodies(model, motion, tmp_path):
     import bvhio
 
@@ -255,6 +254,7 @@ def test_bvh_forward_kinematics_through_bvhio_matches_the_bodies(model, motion, 
     assert worst < 1e-4, worst
 
 
+@pytest.mark.extra("export")
 def test_bvh_joints_are_azee_bones_with_the_model_offsets(model, tmp_path):
     import bvhio
 
@@ -298,6 +298,7 @@ def _term_value(model, data, t: pose_mod.Term) -> np.ndarray:
     return data.body(body).xpos + R @ np.asarray(t.offset)
 
 
+@pytest.mark.extra("export")
 def test_pose_keypoints_match_the_sites_on_every_frame(model, motion, tmp_path):
     from pose_format import Pose
 
@@ -322,6 +323,7 @@ def test_pose_keypoints_match_the_sites_on_every_frame(model, motion, tmp_path):
     assert worst < 1e-4, worst
 
 
+@pytest.mark.extra("export")
 def test_pose_header_is_mediapipe_holistic_with_the_signers_own_sides(model, tmp_path):
     from pose_format import Pose
     from pose_format.utils.generic import detect_known_pose_format, pose_shoulders
@@ -353,6 +355,7 @@ def test_pose_header_is_mediapipe_holistic_with_the_signers_own_sides(model, tmp
     assert 0 <= data[:, 1].min() and data[:, 1].max() < p.header.dimensions.height
 
 
+@pytest.mark.extra("export")
 def test_pose_visualizer_draws_the_file(model, realized, tmp_path):
     pytest.importorskip("cv2", reason="pose-format's visualizer needs opencv")
     from pose_format import Pose
@@ -398,6 +401,7 @@ def test_csv_rows_are_the_site_positions(model, rollout, realized, tmp_path):
 # ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.extra("export")
 def test_cli_exports_a_score_and_a_rollout_with_its_score(tmp_path, capsys):
     out = tmp_path / "good.glb"
     assert main(["export", str(DATA / "good.json"), "-o", str(out), "--fps", "25"]) == 0
@@ -449,6 +453,7 @@ def test_unknown_suffix_is_one_message_and_no_file(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.extra("export")
 def test_an_npz_of_another_model_is_refused(tmp_path, capsys):
     bad = tmp_path / "other.npz"
     np.savez(
@@ -520,6 +525,7 @@ def test_a_writer_failing_midway_leaves_no_partial_file(tmp_path, realized, monk
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.extra("export")
 def test_the_player_page_is_self_contained(realized, tmp_path):
     text = export(realized, tmp_path / "p.html").read_text()
     assert "<script src" not in text and "<link" not in text and "@GLB@" not in text
@@ -559,6 +565,7 @@ def _url(page: Path, query: str) -> str:
 READY = "window.azeePlayer && azeePlayer.ready && azeePlayer.frames > azeePlayer.readyFrame + 2"
 
 
+@pytest.mark.extra("export")
 def test_player_loads_without_error_and_the_animation_advances(browser, page):
     browser.events.clear()
     # Paused while it loads (a slow load would otherwise loop the 2.4 s clip), then played.
@@ -571,6 +578,7 @@ def test_player_loads_without_error_and_the_animation_advances(browser, page):
     assert browser.errors() == []
 
 
+@pytest.mark.extra("export")
 def test_player_controls_pause_play_speed_and_seek(browser, page):
     browser.open(_url(page, "t=0.5&paused=1&speed=2"), READY)
     assert browser.evaluate("azeePlayer.playing()") is False
@@ -599,6 +607,7 @@ def test_player_controls_pause_play_speed_and_seek(browser, page):
     assert browser.errors() == []
 
 
+@pytest.mark.extra("export")
 def test_player_shows_the_blocks_of_the_current_time(browser, page, realized):
     browser.open(_url(page, "t=1.0&paused=1"), READY)
     shown = browser.evaluate("document.getElementById('blocks').textContent")
@@ -636,6 +645,7 @@ def _hand_pixels_mujoco(model_scene, qpos, size) -> np.ndarray:
 
 
 @pytest.mark.parametrize("t", [0.4, 1.2, 2.0])
+@pytest.mark.extra("export")
 def test_player_screenshot_puts_the_strong_hand_where_mujoco_does(browser, page, realized, t):
     from PIL import Image
 
@@ -657,6 +667,7 @@ def test_player_screenshot_puts_the_strong_hand_where_mujoco_does(browser, page,
     assert browser.errors() == []
 
 
+@pytest.mark.extra("export")
 def test_cli_export_takes_azee(tmp_path, capsys):
     src = tmp_path / "five.azee"
     src.write_text(":nb-5\n")

@@ -16,11 +16,6 @@ from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
 
-@pytest.fixture(scope="module")
-def solver() -> ik.Solver:
-    return make_solver(seed=0)
-
-
 def _fk(solver, q):
     d = solver.data
     d.qpos[:] = q

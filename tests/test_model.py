@@ -32,16 +32,6 @@ NEGATABLE = ("spine_extended", "smile", "mouth_down", "eyes_wide")
 ON_TOP_OF = {"thumb_extended": "fist"}
 
 
-@pytest.fixture(scope="module")
-def model() -> mujoco.MjModel:
-    return mujoco.MjModel.from_xml_path(str(MODEL_PATH))
-
-
-@pytest.fixture
-def data(model) -> mujoco.MjData:
-    return mujoco.MjData(model)
-
-
 def _forward(model, data, qpos=None):
     if qpos is not None:
         data.qpos[:] = qpos

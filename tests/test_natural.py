@@ -15,15 +15,9 @@ from hypothesis import strategies as st
 from azee_mj import constraints as cn
 from azee_mj import ergonomics, ik, mirror, natural, reach, timeline
 from azee_mj.kinematics import Const, Lin, SitePos
-from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
 DATA = Path(__file__).parent / "data"
-
-
-@pytest.fixture(scope="module")
-def solver() -> ik.Solver:
-    return make_solver(seed=0)
 
 
 def _posture(m: mujoco.MjModel, seed: int) -> np.ndarray:

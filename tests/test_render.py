@@ -33,6 +33,7 @@ def _workers_alive() -> list[str]:
     return [p.name for p in multiprocessing.active_children() if p.name.startswith("azee-mj")]
 
 
+@pytest.mark.extra("render")
 def test_supersampling_is_as_close_to_the_reference_as_multisampling(clip, gl):
     """Against the same scene rendered 4 times larger with 4x multisampling and averaged
     down (the reference), the supersampled frame is closer on average than the 4x
@@ -98,6 +99,7 @@ def test_frames_are_the_same_from_one_two_and_three_processes(clip, gl, antialia
     assert _workers_alive() == []
 
 
+@pytest.mark.extra("render")
 def test_an_mp4_from_two_processes_is_the_mp4_from_one(clip, gl, tmp_path):
     one, two = tmp_path / "one.mp4", tmp_path / "two.mp4"
     rd.render(clip, one, size=SMALL, fps=100, workers=1)
@@ -144,6 +146,7 @@ def test_worker_count(monkeypatch):
     assert rd.video_workers(500) == 1
 
 
+@pytest.mark.extra("render")
 def test_cli_render_jobs(gl, tmp_path, capsys):
     out = tmp_path / "g.mp4"
     assert main(["render", str(GOOD), "-o", str(out), "--size", "160x120", "--jobs", "2"]) == 0

@@ -49,8 +49,11 @@ from azee_mj.score import (
     referenced_bones,
     referenced_sites,
 )
+from azee_mj.score.grammar import VECTOR_DESC, ExpressionReader
+from azee_mj.score.references import References
+from azee_mj.score.validation import Loc, check_holds
 from azee_mj.sites import DEFAULT_MAP
-from azee_mj.timing import exact_time
+from azee_mj.timing import child_span, exact_time, root_span
 
 DATA = Path(__file__).parent / "data"
 
@@ -1266,3 +1269,66 @@ def test_random_valid_nestings_load_and_children_lie_inside_parents(root):
     assert score.root.end == exact_time(root["end"] - root["start"])
     _check_nesting(score.root)
     assert len({b.path for b in score.blocks()}) == len(list(score.blocks()))
+
+
+# ---------------------------------------------------------------------------------------
+# The parts of the loader, called directly
+# ---------------------------------------------------------------------------------------
+
+
+def test_child_span_is_on_the_microsecond_grid_and_inside_its_parent():
+    # 1.0 + 1.4 is 2.4000000000000004 in floating point; the span is the time 2.4 itself
+    assert child_span(0.4, 1.4, 1.0, 2.4) == (1.4, 2.4)
+    assert child_span(0.4, 1.4, 1.0, 2.4)[1] == 2.4 == 120 / 50
+    # written a hair outside the parent (within the load-time slack): kept inside it
+    assert child_span(-1e-10, 1.0 + 1e-10, 3.0, 4.0) == (3.0, 4.0)
+    assert child_span(0.5, 2.0, 1.0, None) == (1.5, 3.0)
+    assert root_span(1.25, 3.75) == (0.0, 2.5)
+
+
+def test_expression_reader_reads_the_grammar_and_names_the_field():
+    refs = References(DEFAULT_MAP, strong="L")
+    reader = ExpressionReader(refs)
+    loc = Loc("sign", "constraint 1 (place)")
+    p = reader.point(loc, "at", {"translate": [0, 0, 1], "by": {"scale": "lat(s)", "by": 2}})
+    assert p == PTranslate(PLiteral((0.0, 0.0, 1.0)), VScale(VAxis((0.0, 1.0, 0.0), "left"), 2.0))
+    assert reader.vector(loc, "v", "lat(w)").name == "right"
+    with pytest.raises(ScoreError) as e:
+        reader.vector(loc, "v", {"opp": "up", "unit": "up"})
+    assert str(e.value) == (
+        "sign: constraint 1 (place): field 'v': "
+        '{"opp": "up", "unit": "up"} mixes the forms \'opp\' and \'unit\'; expected ' + VECTOR_DESC
+    )
+    with pytest.raises(ScoreError) as e:
+        reader.direction(loc, "v", {"add": ["up", "down"]})
+    assert str(e.value) == (
+        'sign: constraint 1 (place): field \'v\': zero direction {"add": ["up", "down"]}; '
+        "give a vector of non-zero length"
+    )
+
+
+def _blocks(*spans: tuple[str, float, float, str | None]) -> tuple[Block, ...]:
+    return tuple(
+        Block(
+            name=n,
+            path=f"s.{n}",
+            kind=BlockKind.HOLD if of else BlockKind.CSTR,
+            start=a,
+            end=b,
+            hold_of=f"s.{of}" if of else None,
+        )
+        for n, a, b, of in spans
+    )
+
+
+def test_check_holds_names_the_hold_the_block_it_holds_and_the_times():
+    check_holds("s", _blocks(("a", 1.0, 2.0, None), ("h", 2.0, 3.0, "a")), 1.0)
+    with pytest.raises(ScoreError) as e:
+        check_holds("s", _blocks(("a", 1.0, 2.5, None), ("h", 2.0, 3.0, "a")), 1.0)
+    assert str(e.value) == (
+        "s.h: field 'of': 'a' ends at 1.5 s, after this hold starts at 1 s; a hold keeps the "
+        "posture reached at the end of the block it holds, so it starts at or after that end"
+    )
+    with pytest.raises(ScoreError) as e:
+        check_holds("s", _blocks(("a", 1.0, 2.0, None), ("h", 2.0, 3.0, "b")), 1.0)
+    assert str(e.value) == "s.h: field 'of': no sibling block named 'b'; siblings are a"

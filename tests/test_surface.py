@@ -13,23 +13,11 @@ import pytest
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import kinematics as kin
-from azee_mj.model import MODEL_PATH
-from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP, azee_site_names
 from azee_mj.surface import collision_geoms, local_distance, skin_distance
 
 #: How far a surface site may be from its body's collision surface [m] (signer.md: 0.1 mm).
 ON_SKIN = 1e-4
-
-
-@pytest.fixture(scope="module")
-def model() -> mujoco.MjModel:
-    return mujoco.MjModel.from_xml_path(str(MODEL_PATH))
-
-
-@pytest.fixture
-def data(model) -> mujoco.MjData:
-    return mujoco.MjData(model)
 
 
 def _posture(model, name):
@@ -237,11 +225,6 @@ def test_pinch_handshapes_join_thumb_and_index_tips(model, data, shape, side):
 
 
 # --------------------------------------------------------------------------- contacts
-
-
-@pytest.fixture(scope="module")
-def solver() -> ik.Solver:
-    return make_solver()
 
 
 def _hand_targets(shape: str, sides: str) -> list[cn.JointTarget]:

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from azee_mj import ik, timeline
+from azee_mj import timeline
 from azee_mj.check import check_poses
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import KeyPoser
@@ -21,11 +21,6 @@ from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 
 DATA = Path(__file__).parent / "data"
-
-
-@pytest.fixture(scope="module")
-def solver() -> ik.Solver:
-    return make_solver(seed=0)
 
 
 @pytest.fixture(scope="module")

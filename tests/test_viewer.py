@@ -151,6 +151,7 @@ def _png(path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB")).astype(float)
 
 
+@pytest.mark.extra("render")
 def test_still_shows_the_signer_and_frames_differ(clip, gl, tmp_path):
     a, b = tmp_path / "a.png", tmp_path / "b.png"
     rd.render(clip, a, time=0.2, size=(320, 240))
@@ -165,6 +166,7 @@ def test_still_shows_the_signer_and_frames_differ(clip, gl, tmp_path):
     assert np.abs(ia - ib)[:, :160].sum() > np.abs(ia - ib)[:, 240:].sum()  # signer's right
 
 
+@pytest.mark.extra("render")
 def test_mp4_has_the_expected_frames_and_duration(clip, gl, tmp_path):
     import imageio.v3 as iio
 
@@ -179,6 +181,7 @@ def test_mp4_has_the_expected_frames_and_duration(clip, gl, tmp_path):
     assert np.abs(frames[0].astype(float) - frames[n // 2]).mean() > 0.5
 
 
+@pytest.mark.extra("render")
 def test_software_gl_settings_look_like_the_full_quality_scene(clip, gl):
     """16 x 10 facets and no floor reflection against scene.xml's 28 x 16 facets and
     reflection (both with a 1024 shadow map, both supersampled and scaled down alike): the
@@ -231,6 +234,7 @@ def test_encoder_writes_every_frame_in_order_and_raises_writer_errors():
         raise KeyboardInterrupt
 
 
+@pytest.mark.extra("render")
 def test_sigterm_while_encoding_an_mp4_exits_143_and_leaves_nothing(rollout, gl, tmp_path):
     from azee_mj.rollout_io import save_rollout
 
@@ -268,6 +272,7 @@ def test_sigterm_while_encoding_an_mp4_exits_143_and_leaves_nothing(rollout, gl,
     assert [f.name for f in tmp_path.iterdir()] == ["good.npz"]
 
 
+@pytest.mark.extra("render")
 def test_mp4_frames_are_the_rendered_frames(clip, gl, tmp_path):
     import imageio.v3 as iio
 
@@ -279,6 +284,7 @@ def test_mp4_frames_are_the_rendered_frames(clip, gl, tmp_path):
             assert np.abs(video[k] - fr.render(clip.qpos[k])).mean() < 3.0  # H.264 loss
 
 
+@pytest.mark.extra("render")
 def test_gif_frames_and_timing(clip, gl, tmp_path):
     from PIL import Image
 
@@ -295,6 +301,7 @@ def test_gif_frames_and_timing(clip, gl, tmp_path):
     assert total == 1300  # 13 frames, 0.0 .. 1.2 s at 10 fps
 
 
+@pytest.mark.extra("render")
 def test_contact_sheet_of_key_postures(clip, gl, tmp_path):
     out = tmp_path / "sheet.png"
     rd.render(clip, out, size=SMALL, targets=True)
@@ -305,6 +312,7 @@ def test_contact_sheet_of_key_postures(clip, gl, tmp_path):
     assert np.abs(tiles[0] - tiles[2]).mean() > 0.5
 
 
+@pytest.mark.extra("render")
 def test_cli_render_from_npz_with_score(gl, tmp_path, capsys):
     npz = tmp_path / "g.npz"
     assert main(["realize", str(GOOD), "-o", str(npz)]) == 0

@@ -18,21 +18,13 @@ from typing import Any
 import numpy as np
 
 from azee_mj.errors import ScoreError, shorten, tidy
-from azee_mj.score.expressions import depends_on_body
+from azee_mj.score.expressions import depends_on_body, eval_vector
 from azee_mj.score.records import (
+    TIME_SLACK,
     ZERO_NORM,
-    PLiteral,
-    PMid,
-    PointExpr,
-    PTranslate,
-    VAdd,
-    VAxis,
-    VCross,
+    Block,
+    BlockKind,
     VectorExpr,
-    VFrom,
-    VLiteral,
-    VOpp,
-    VScale,
 )
 from azee_mj.sites import suggest
 
@@ -205,35 +197,12 @@ def nonzero(loc: Loc, field: str, expr: VectorExpr, written: Any, what: str) -> 
     when it is evaluated."""
     if depends_on_body(expr):
         return
-    if float(np.linalg.norm(_constant(expr))) < ZERO_NORM:
+    if float(np.linalg.norm(eval_vector(expr, _no_posture, _no_posture))) < ZERO_NORM:
         raise loc.fail(f"{what} {got(written)}", "give a vector of non-zero length", field=field)
 
 
-def _constant(e: PointExpr | VectorExpr) -> np.ndarray:
-    """The value of an expression that reads no posture (the load-time check only; postures
-    are read by :class:`azee_mj.kinematics.Kinematics`)."""
-    if isinstance(e, (VAxis, VLiteral, PLiteral)):
-        return np.array(e.xyz, dtype=float)
-    if isinstance(e, PTranslate):
-        return _constant(e.p) + _constant(e.v)
-    if isinstance(e, PMid):
-        return 0.5 * (_constant(e.p) + _constant(e.q))
-    if isinstance(e, VOpp):
-        return -_constant(e.v)
-    if isinstance(e, VScale):
-        return e.k * _constant(e.v)
-    if isinstance(e, VAdd):
-        total = np.zeros(3)
-        for term in e.terms:
-            total = total + _constant(term)
-        return total
-    if isinstance(e, VCross):
-        return np.cross(_constant(e.a), _constant(e.b))
-    if isinstance(e, VFrom):
-        return _constant(e.q) - _constant(e.p)
-    v = _constant(e.v)  # VUnit
-    n = float(np.linalg.norm(v))
-    return v / n if n > 0.0 else np.zeros(3)
+def _no_posture(*_: Any) -> np.ndarray:
+    raise TypeError("a constant expression reads no site and no bone")
 
 
 def check_depth(data: Any, limit: int = MAX_DEPTH) -> None:
@@ -254,3 +223,41 @@ def check_depth(data: Any, limit: int = MAX_DEPTH) -> None:
                 f"the deepest nesting allowed is {limit}",
             )
         stack.extend((c, depth + 1) for c in children)
+
+
+def check_holds(parent: str, blocks: tuple[Block, ...], parent_start: float) -> None:
+    """Check the holds among sibling ``blocks`` of the block at path ``parent`` (which
+    starts at ``parent_start`` [s]): each names another sibling, one that ends by the time
+    the hold starts."""
+    by_name = {b.name: b for b in blocks}
+    for b in blocks:
+        if b.kind is not BlockKind.HOLD:
+            continue
+        of = (b.hold_of or "")[len(parent) + 1 :]
+        hloc = Loc(b.path)
+        others = [n for n in by_name if n != b.name]
+        if of == b.name:
+            raise hloc.fail(
+                f"'{of}' is this hold itself",
+                f"a hold names a sibling block: {listing(others)}"
+                if others
+                else "a hold names a sibling block, and this block has none",
+                field="of",
+            )
+        if of not in by_name:
+            raise hloc.fail(
+                f"no sibling block named '{of}'",
+                (f"siblings are {listing(others)}" + suggest(of, others))
+                if others
+                else "this block has no siblings",
+                field="of",
+            )
+        held = by_name[of]
+        if held.end > b.start + TIME_SLACK:
+            raise hloc.fail(
+                f"'{of}' ends at {num(held.end - parent_start)} s, after this hold starts"
+                f" at {num(b.start - parent_start)} s",
+                "a hold keeps the posture reached at the end of the block it holds, "
+                "so it starts at or after that end",
+                field="of",
+            )

@@ -220,15 +220,26 @@ def _cmd_realize(args, run: _Run) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
     if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
+        if args.dynamics:
+            raise AzeeError("--dynamics realizes one score at a time (give one SCORE and OUT.npz)")
         return _realize_many(args)
+    if args.dynamics and args.mode != "multitrack":
+        raise AzeeError("--dynamics follows the multitrack realization; drop --mode flattened")
     path = args.score[0]
     _outputs((args.output, args.report), (path,), args.lexicon)
     score = load_score(run.score_path(path, args.lexicon))
-    rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
+    if args.dynamics:
+        from azee_mj import physics
+
+        rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"))
+    else:
+        rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
     save_rollout(args.output, rollout, inputs=(path,))
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
     print("\n".join(summary_lines(args.output, rollout, args.fps)))
+    if args.dynamics:
+        print(rollout.summary())
     return 1 if args.strict and any(not t.ok for t in rollout.traces) else 0
 
 
@@ -429,6 +440,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument(
         "--jobs", type=int, help="processes for several scores (default: one per usable core)"
+    )
+    r.add_argument(
+        "--dynamics",
+        action="store_true",
+        help="physics mode: MuJoCo moves the signer along the realization, with human "
+        "torque limits (adds torques, effort and energy; docs/physics.md)",
     )
     _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)

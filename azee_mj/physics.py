@@ -33,7 +33,6 @@ from collections.abc import Callable
 
 import mujoco
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from azee_mj import natural
 from azee_mj import score as sc
@@ -48,6 +47,7 @@ __all__ = [
     "PhysicsError",
     "Settings",
     "actuated_model",
+    "realize",
     "simulate",
     "torque_limits",
 ]
@@ -63,11 +63,13 @@ class PhysicsError(AzeeError):
 
 
 #: Limits of the joints the effort model gives no strength (fingers, eyes, face, and any
-#: joint a later model adds): [N m] for hinges, [N] for slides, by track. Chosen, not
-#: measured: a finger's flexors hold a few newton-metres at the knuckles, the eye muscles
-#: and the face a small fraction of that; each is several times what the bundled examples
-#: ask of the joint (``bench/physics.py`` reports the peak ratio).
-FALLBACK_LIMITS = {"hand": 2.0, "eyes": 0.05, "face": 1.0, "hinge": 1.0, "slide": 5.0}
+#: joint a later model adds, e.g. new face joints): [N m] for hinges, [N] for slides, by
+#: track, else by joint type. Chosen, not measured: a finger's flexors hold a few
+#: newton-metres at the knuckles, the face a fraction of that. The model's eyes carry an
+#: armature of 1e-4 kg m^2 (for stable steps; about a hundred times an eyeball's inertia),
+#: so their limit lets that inertia make a saccade (about 20 000 deg/s^2), not an
+#: eyeball's real torque.
+FALLBACK_LIMITS = {"hand": 2.0, "eyes": 0.2, "face": 1.0, "hinge": 1.0, "slide": 5.0}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -275,6 +277,8 @@ def reference(
     T = len(rollout.time)
     n = (T - 1) * sub + 1
     if T > 1:
+        from scipy.interpolate import CubicSpline  # imported here: importing azee_mj stays light
+
         spline = CubicSpline(np.arange(T) / fps, rollout.qpos, axis=0)
         ext = spline(np.arange(-1, n + 1) * dt)
     else:
@@ -333,7 +337,9 @@ def block_at(score: sc.Score, t: float) -> str:
     inside = [b for b in score.blocks() if b.start - 1e-9 <= t < b.end]
     if not inside:
         return score.root.path
-    return max(inside, key=lambda b: b.path.count(".")).path
+    # the deepest, and of equally deep blocks the shortest (a key posture, not the
+    # permanent hand shape around it)
+    return max(inside, key=lambda b: (b.path.count("."), b.start - b.end)).path
 
 
 def _between(x: np.ndarray, sub: int) -> np.ndarray:
@@ -525,6 +531,24 @@ class DynamicRollout(Rollout):
     tracking_site: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     tracking_joint: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     timestep: float = 0.002
+    #: Wall time the simulation took [s] (not stored in files).
+    sim_seconds: float = 0.0
+    #: How far the simulation took a joint past its range, clipped in ``qpos`` [rad or m]
+    #: (MuJoCo's limits are soft; not stored in files).
+    clipped: float = 0.0
+
+    def summary(self) -> str:
+        """One line: the peak torque against its limit, the energy, the worst tracking
+        error and the simulation's speed."""
+        ratio = self.torque_peak / self.torque_limit
+        j = int(np.unravel_index(np.argmax(ratio), ratio.shape)[1]) if ratio.size else 0
+        speed = float(self.time[-1]) / self.sim_seconds if self.sim_seconds > 0 else 0.0
+        return (
+            f"physics: peak torque {100 * ratio.max():.0f}% of its limit ({self.joints[j]}), "
+            f"energy {self.energy[-1]:.1f} J, tracking within "
+            f"{1000 * self.tracking_site.max():.1f} mm of the kinematic sites; "
+            f"simulated at {speed:.1f}x real time (step {1000 * self.timestep:g} ms)"
+        )
 
     def blocks(self) -> list[BlockDynamics]:
         """Per block of the schedule (in order of start), its :class:`BlockDynamics`."""
@@ -618,10 +642,51 @@ def simulate(
     return _dynamic(rollout, score, m, ref, traj, solver, _time.perf_counter() - t0)
 
 
+def realize(
+    score: sc.Score | str,
+    *,
+    fps: float = 50.0,
+    settings: Settings = Settings(),
+    solver=None,
+    signer_map: SignerMap | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> DynamicRollout:
+    """Realize ``score`` kinematically (:func:`azee_mj.timeline.realize`) and simulate the
+    signer along it (:func:`simulate`): the physics mode's rollout, frame ``k`` at
+    ``k / fps`` [s]."""
+    from azee_mj import timeline
+    from azee_mj.schedule import make_solver
+
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    smap = signer_map or DEFAULT_MAP
+    solver = solver or make_solver(signer_map=smap)
+    tick = progress or (lambda f: None)
+    kin = timeline.realize(
+        score, fps=fps, solver=solver, signer_map=smap, progress=lambda f: tick(0.5 * f)
+    )
+    return simulate(
+        kin,
+        score,
+        settings=settings,
+        signer_map=smap,
+        solver=solver,
+        progress=lambda f: tick(0.5 + 0.5 * f),
+    )
+
+
 def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
     from azee_mj.model import load_model
 
     base = solver.model if solver is not None else load_model()
+    # MuJoCo's joint limits are soft: a joint held at its limit sits up to ~1e-4 rad past
+    # it. The stored postures are clipped to the ranges (``clipped`` says by how much).
+    lim = base.jnt_limited.astype(bool)
+    qa = base.jnt_qposadr[lim]
+    q = traj.qpos.copy()
+    q[:, qa] = np.clip(q[:, qa], base.jnt_range[lim, 0], base.jnt_range[lim, 1])
+    clipped = float(np.abs(q - traj.qpos).max()) if q.size else 0.0
+    traj = dataclasses.replace(traj, qpos=q)
     d = mujoco.MjData(base)
     sids = [mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SITE, s) for s in rollout.site_names]
     site_pos = np.empty_like(rollout.site_pos)
@@ -662,4 +727,6 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
         tracking_site=np.linalg.norm(site_pos - rollout.site_pos, axis=2).max(axis=1),
         tracking_joint=np.abs(traj.qpos - rollout.qpos).max(axis=1),
         timestep=ref.dt,
+        sim_seconds=seconds,
+        clipped=clipped,
     )

@@ -8,7 +8,10 @@ written before this layout hold a dense ``residuals`` (T, C) (NaN outside) and s
 The schedule is stored as parallel arrays and restored as
 :class:`~azee_mj.schedule.TrackInterval` records. A file holding only the required arrays
 (``time``, ``qpos``, ``fps``, ``site_names``, ``site_pos``) loads with an empty schedule,
-no traces and zero stats. The solve times are not stored (they read 0 after loading), so
+no traces and zero stats. A rollout of the physics mode
+(:class:`~azee_mj.physics.DynamicRollout`) adds ``torque_joints`` (nu,), ``torque`` and
+``torque_peak`` (T, nu), ``torque_limit`` (nu,), ``effort``, ``energy``, ``tracking_site``
+and ``tracking_joint`` (T,) and ``timestep``, and loads back as one. The solve times are not stored (they read 0 after loading), so
 that a file depends only on the score, the options and the package version.
 
 :func:`load_rollout` validates everything it reads (names, shapes, dtypes, finite values,
@@ -26,6 +29,7 @@ import numpy as np
 
 from azee_mj.errors import InputFileError, shorten
 from azee_mj.files import save_npz
+from azee_mj.physics import DynamicRollout
 from azee_mj.schedule import TrackInterval
 from azee_mj.timeline import ConstraintTrace, Mode, Rollout, SolveStats
 from azee_mj.timing import MAX_FPS, MAX_FRAMES, MIN_FPS
@@ -71,9 +75,58 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
     }
 
 
+#: The per-frame (T,) arrays of a physics rollout.
+DYNAMIC_SERIES = ("effort", "energy", "tracking_site", "tracking_joint")
+
+
+def dynamic_arrays(r: DynamicRollout) -> dict[str, np.ndarray]:
+    """The extra arrays of a physics rollout."""
+    out = {
+        "torque_joints": np.array(r.joints, dtype=str),
+        "torque": r.torque,
+        "torque_peak": r.torque_peak,
+        "torque_limit": r.torque_limit,
+        "timestep": np.array(r.timestep),
+    }
+    return out | {k: getattr(r, k) for k in DYNAMIC_SERIES}
+
+
+def _dynamic(r: Rollout, numeric, text, bad) -> DynamicRollout:
+    """``r`` with the physics arrays of its file, checked."""
+    T = len(r.time)
+    joints = text("torque_joints")
+    nu = len(joints)
+    arrays = {}
+    for k, shape in (
+        ("torque", (T, nu)),
+        ("torque_peak", (T, nu)),
+        ("torque_limit", (nu,)),
+        *((k, (T,)) for k in DYNAMIC_SERIES),
+    ):
+        v = numeric(k)
+        if v.shape != shape or not np.isfinite(v).all():
+            raise bad(f"array '{k}' must be finite with shape {shape}; got {v.shape}")
+        arrays[k] = v
+    step = numeric("timestep")
+    if step.size != 1 or not 0.0 < float(step.reshape(())) <= 0.002:
+        raise bad("timestep must be one number in (0, 0.002] s")
+    if (arrays["torque_limit"] <= 0.0).any():
+        raise bad("torque_limit must be positive")
+    fields = {f: getattr(r, f) for f in Rollout.__dataclass_fields__}
+    return DynamicRollout(
+        **fields,
+        joints=tuple(str(j) for j in joints),
+        timestep=float(step.reshape(())),
+        **arrays,
+    )
+
+
 def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
     """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace)."""
-    save_npz(path, rollout_arrays(rollout), inputs)
+    arrays = rollout_arrays(rollout)
+    if isinstance(rollout, DynamicRollout):
+        arrays |= dynamic_arrays(rollout)
+    save_npz(path, arrays, inputs)
 
 
 def _read_arrays(path) -> dict[str, np.ndarray]:
@@ -216,7 +269,7 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
     mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
     if mode_s not in {m.value for m in Mode}:
         raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
-    return Rollout(
+    r = Rollout(
         fps,
         Mode(mode_s),
         time,
@@ -227,6 +280,7 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         tuple(traces),
         stats,
     )
+    return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
 
 
 def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:

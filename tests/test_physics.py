@@ -1,0 +1,169 @@
+"""The physics mode: the simulator moves the signer along the kinematic realization."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from azee_mj import physics, timeline
+from azee_mj.cli import main
+from azee_mj.natural import STRENGTH
+from azee_mj.rollout_io import load_rollout, rollout_arrays, save_rollout
+from azee_mj.score import load_score
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = Path(__file__).parent / "data"
+BIEN = ROOT / "examples" / "bien.json"
+#: Golden physics rollout of bien (every 6th frame): postures within 1e-6 rad, torques
+#: within 1e-4 N m (MuJoCo is deterministic on one machine; across machines and compilers
+#: the last bits of floating point may differ).
+GOLDEN = DATA / "physics_bien_golden.npz"
+GOLDEN_EVERY = 6
+
+
+@pytest.fixture(scope="module")
+def bien(solver):
+    score = load_score(BIEN)
+    kin = timeline.realize(score, solver=solver)
+    return score, kin, physics.simulate(kin, score, solver=solver)
+
+
+def _joint(m, name):
+    return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+
+def test_limits_keep_the_effort_strengths_and_give_every_other_joint_one(model):
+    lim = physics.torque_limits(model)
+    assert lim.shape == (model.nv,) and (lim > 0).all()
+    assert lim[model.jnt_dofadr[_joint(model, "arm_R_flex")]] == STRENGTH["arm"]
+    assert lim[model.jnt_dofadr[_joint(model, "back_1_flex")]] == STRENGTH["spine"]
+    assert lim[model.jnt_dofadr[_joint(model, "palm_L_flex")]] == STRENGTH["palm"]
+    assert lim[model.jnt_dofadr[_joint(model, "index_R_2_flex")]] == physics.FALLBACK_LIMITS["hand"]
+    assert lim[model.jnt_dofadr[_joint(model, "eye_L_yaw")]] == physics.FALLBACK_LIMITS["eyes"]
+    assert lim[model.jnt_dofadr[_joint(model, "brow_R_raise")]] == physics.FALLBACK_LIMITS["slide"]
+
+
+def test_actuated_model_drives_every_joint_without_gravity_compensation():
+    score = load_score(BIEN)
+    ties = physics.ties(score)
+    m = physics.actuated_model(ties)
+    assert m.nu == m.njnt and m.nmocap == len(ties) == m.neq
+    assert (m.body_gravcomp == 0).all()
+    assert (m.actuator_forcelimited == 1).all()
+    assert [t.kind for t in ties] == ["body", "site"]
+    assert ties[1].name == "T_TIP_R" and ties[1].windows == ((0.3, 0.6), (0.9, 1.2))
+
+
+def test_feed_forward_is_mj_inverse_without_constraints(model):
+    m = physics.actuated_model()
+    free = mujoco.MjModel.from_xml_path(str(physics.MODEL_PATH))
+    free.body_gravcomp[:] = 0.0
+    free.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    d = mujoco.MjData(free)
+    rng = np.random.default_rng(3)
+    lo, hi = m.jnt_range[:, 0], m.jnt_range[:, 1]
+    q = rng.uniform(lo, hi, (4, m.nq))
+    qd, qdd = rng.normal(0, 1, (4, m.nv)), rng.normal(0, 10, (4, m.nv))
+    ff, _, _ = physics.feed_forward(m, q, qd, qdd)
+    for i in range(4):
+        d.qpos[:], d.qvel[:], d.qacc[:] = q[i], qd[i], qdd[i]
+        mujoco.mj_inverse(free, d)
+        np.testing.assert_allclose(ff[i], d.qfrc_inverse, atol=1e-9, rtol=1e-9)
+
+
+def test_torques_stay_within_their_limits(bien):
+    _, _, p = bien
+    assert (np.abs(p.torque_peak) <= p.torque_limit * (1 + 1e-12)).all()
+    assert (np.abs(p.torque) <= p.torque_peak + 1e-12).all()
+    assert p.torque_peak.max() > 0.0
+
+
+def test_holds_are_met_within_2_mm_and_2_degrees(bien):
+    _, kin, p = bien
+    for t in p.traces:
+        lim = 2e-3 if t.unit == "m" else np.radians(2.0)
+        assert t.worst <= lim, t.describe()
+    # it is a simulation: the body does not follow the kinematic frames bit for bit
+    assert 0.0 < p.tracking_site.max() < 2e-3
+    assert not np.array_equal(p.qpos, kin.qpos)
+
+
+def test_same_bytes_every_run(bien, solver):
+    score, kin, p = bien
+    again = physics.simulate(kin, score, solver=solver)
+    a, b = rollout_arrays(p), rollout_arrays(again)
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+    assert np.array_equal(p.torque, again.torque) and np.array_equal(p.energy, again.energy)
+
+
+def test_divergence_names_the_time_and_the_block(bien):
+    score, kin, _ = bien
+    ties = physics.ties(score)
+    m = physics.actuated_model(ties)
+    ref = physics.reference(m, kin, ties, physics.Settings())
+    ctrl = ref.ctrl.copy()
+    ctrl[int(round(0.45 / ref.dt))] = np.nan
+    bad = dataclasses.replace(ref, ctrl=ctrl)
+    with pytest.raises(physics.PhysicsError) as e:
+        physics.step(m, bad, len(kin.time), score)
+    assert str(e.value) == (
+        "the simulation diverged by t = 0.460 s in block BIEN.K1 "
+        "(MuJoCo warning mjWARN_BADCTRL); nothing was written"
+    )
+    assert e.value.time == pytest.approx(0.46) and e.value.block == "BIEN.K1"
+
+
+def test_settings_refuse_a_step_over_2_ms():
+    with pytest.raises(physics.AzeeError, match=r"timestep must be in \(0, 0.002\] s, got 0.005"):
+        physics.Settings(timestep=0.005)
+
+
+def test_report_has_tracking_torque_and_energy_per_block(bien):
+    _, _, p = bien
+    rep = p.report()["dynamics"]
+    blocks = {b["block"]: b for b in rep["blocks"]}
+    assert set(blocks) == {"BIEN.PERM", "BIEN.K1", "BIEN.T", "BIEN.K2"}
+    k1 = blocks["BIEN.K1"]
+    assert 0.0 <= k1["peak_torque_ratio"] <= 1.0 and k1["tracking_site_mm"] < 2.0
+    total = rep["energy_j"]
+    assert 0.0 < blocks["BIEN.PERM"]["energy_j"] <= total
+    assert p.energy[-1] == total and (np.diff(p.energy) >= 0).all()
+
+
+def test_file_round_trip_keeps_the_dynamics(bien, tmp_path, model):
+    _, _, p = bien
+    path = tmp_path / "dyn.npz"
+    save_rollout(path, p)
+    back = load_rollout(path, model.nq)
+    assert isinstance(back, physics.DynamicRollout)
+    assert back.joints == p.joints and back.timestep == p.timestep
+    for k in ("torque", "torque_peak", "torque_limit", "effort", "energy", "qpos", "site_pos"):
+        assert np.array_equal(getattr(back, k), getattr(p, k)), k
+
+
+def test_golden_bien(bien):
+    _, _, p = bien
+    with np.load(GOLDEN) as g:
+        np.testing.assert_allclose(p.qpos[::GOLDEN_EVERY], g["qpos"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(p.torque[::GOLDEN_EVERY], g["torque"], rtol=0, atol=1e-4)
+
+
+def test_cli_realize_dynamics(tmp_path, capsys, model):
+    out = tmp_path / "b.npz"
+    assert main(["realize", str(BIEN), "--dynamics", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "3/3 constraints within tolerance" in text and "physics: peak torque" in text
+    assert isinstance(load_rollout(out, model.nq), physics.DynamicRollout)
+    assert main(["check", str(out), "--score", str(BIEN)]) == 0
+
+
+def test_cli_dynamics_refuses_the_flattened_mode(tmp_path, capsys):
+    out = tmp_path / "b.npz"
+    assert main(["realize", str(BIEN), "--dynamics", "--mode", "flattened", "-o", str(out)]) == 2
+    assert "--dynamics follows the multitrack realization" in capsys.readouterr().err
+    assert not out.exists()

@@ -247,7 +247,9 @@ def _add_tie(spec: mujoco.MjSpec, i: int, tie: Tie, settings: Settings) -> None:
 class Reference:
     """What the actuators and mocap bodies follow at each simulation step ``i`` (time
     ``i * dt``): ``ctrl`` (N, nu), ``mocap_pos`` (N, ties, 3), ``mocap_quat`` (N, ties, 4)
-    and ``active`` (N, ties) which equalities act."""
+    and ``active`` (N, ties) which equalities act; ``torque_ff`` (N, nu) the inverse
+    dynamics of the reference alone: what the body needs to move as the kinematic frames
+    do (it may exceed the limits; the actuators then saturate)."""
 
     dt: float
     substeps: int
@@ -257,6 +259,7 @@ class Reference:
     active: np.ndarray
     qpos: np.ndarray
     qvel: np.ndarray
+    torque_ff: np.ndarray
 
 
 def reference(
@@ -312,7 +315,7 @@ def reference(
     for k, t in enumerate(score_ties):
         for a, b in t.windows:
             active[(steps >= a - 1e-9) & (steps < b - 1e-9), k] = True
-    return Reference(dt, sub, ctrl, mpos, mquat, active, q, qd)
+    return Reference(dt, sub, ctrl, mpos, mquat, active, q, qd, ff[:, dof])
 
 
 # ---------------------------------------------------------------------------------------

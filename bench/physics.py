@@ -1,0 +1,252 @@
+"""Kinematic and physics modes side by side, on every bundled example and a 10-sign sentence.
+
+    python bench/physics.py [--quick] [--repeat 3]
+
+For each score, in both modes: the worst constraint error at the holds (place [mm], orient
+and look [deg]); per movement of each wrist (a run of frames where the wrist moves faster
+than 5 cm/s in the kinematic rollout), its smoothness (SPARC, Balasubramanian et al. 2015:
+closer to 0 is smoother; minimum-jerk reaches about -1.6) and its peak wrist speed [m/s];
+the deepest penetration outside the contacts the score asks for [mm]; the torques (the
+physics mode's peak against its limit, and the torque the kinematic frames would need,
+from inverse dynamics, against the same limit); the wall time and the real-time factor of
+the simulation on one core. ``--quick`` runs two examples and a 3-sign sentence.
+
+Results go to ``bench/results/physics.json``. The functions (:func:`compare`,
+:func:`movements`, :func:`sparc`, :func:`penetrations`) are importable for other benches.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import mujoco
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from machine import machine
+from realize import SIGNS, sentence
+
+from azee_mj import physics, timeline
+from azee_mj.constraints import penetration_depth
+from azee_mj.schedule import Schedule, make_solver
+from azee_mj.score import load_score
+
+ROOT = HERE.parent
+EXAMPLES = ["arbre", "armoire", "bien", "info-about", "nicht-sondern", "penser", "pointing"]
+#: A wrist moving faster than this is in a movement [m/s].
+MOVING = 0.05
+WRISTS = ("WR_R", "WR_L")
+
+
+def sparc(speed: np.ndarray, fs: float, pad: int = 4, fc: float = 10.0, amp: float = 0.05):
+    """Spectral arc length of a speed profile sampled at ``fs`` [Hz] (Balasubramanian et
+    al. 2015): the arc length of its normalized magnitude spectrum up to the last frequency
+    above ``amp`` (at most ``fc`` Hz); negative, closer to 0 is smoother."""
+    n = int(2 ** (np.ceil(np.log2(len(speed))) + pad))
+    f = np.arange(n) * fs / n
+    mag = np.abs(np.fft.fft(speed, n))
+    mag = mag / mag.max()
+    sel = f <= fc
+    f, mag = f[sel], mag[sel]
+    above = np.flatnonzero(mag >= amp)
+    f, mag = f[above[0] : above[-1] + 1], mag[above[0] : above[-1] + 1]
+    if len(f) < 2:
+        return 0.0
+    return float(-np.sum(np.hypot(np.diff(f) / (f[-1] - f[0]), np.diff(mag))))
+
+
+def wrist_speed(r, site: str) -> np.ndarray:
+    """(T,) speed of ``site`` [m/s] (central differences of its positions)."""
+    p = r.site_pos[:, r.site_names.index(site)]
+    return np.linalg.norm(np.gradient(p, 1.0 / r.fps, axis=0), axis=1)
+
+
+def movements(r, site: str, min_frames: int = 4) -> list[tuple[int, int]]:
+    """Frame ranges [a, b) where ``site`` moves faster than :data:`MOVING`, padded by one
+    frame each side."""
+    moving = wrist_speed(r, site) > MOVING
+    out, a = [], None
+    for f, m in enumerate([*moving, False]):
+        if m and a is None:
+            a = f
+        elif not m and a is not None:
+            if f - a >= min_frames:
+                out.append((max(0, a - 1), min(len(moving), f + 1)))
+            a = None
+    return out
+
+
+def penetrations(r, score, solver) -> float:
+    """The deepest penetration of the rollout's frames outside the contacts the score asks
+    for [m]."""
+    sched = Schedule(score, solver)
+    m = solver.model
+    d = mujoco.MjData(m)
+    worst = 0.0
+    for f, t in enumerate(r.time):
+        d.qpos[:] = r.qpos[f]
+        worst = max(worst, penetration_depth(m, d, sched.allowed_at(float(t))))
+    return worst
+
+
+def holds(r) -> dict:
+    """The worst constraint error at the holds: place [mm], orient and look [deg]."""
+    place = [t.worst for t in r.traces if t.unit == "m"]
+    angle = [t.worst for t in r.traces if t.unit != "m"]
+    return {
+        "place_mm": 1000.0 * max(place, default=0.0),
+        "angle_deg": float(np.degrees(max(angle, default=0.0))),
+    }
+
+
+def demand(kin, score) -> tuple[float, str]:
+    """The largest ratio of the torque the kinematic frames need (the reference's inverse
+    dynamics at the simulation's steps, no contact) to the joint's limit, and that joint."""
+    ties = physics.ties(score)
+    m = physics.actuated_model(ties)
+    ref = physics.reference(m, kin, ties, physics.Settings())
+    ratio = np.abs(ref.torque_ff) / m.actuator_forcerange[:, 1]
+    j = int(np.unravel_index(np.argmax(ratio), ratio.shape)[1])
+    return float(ratio.max()), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+
+
+def compare(score, solver, repeat: int = 1) -> dict:
+    """Both modes of ``score`` side by side (see the module's docstring)."""
+    t = time.perf_counter()
+    kin = timeline.realize(score, solver=solver)
+    kin_s = time.perf_counter() - t
+    best, dyn = float("inf"), None
+    for _ in range(repeat):
+        dyn = physics.simulate(kin, score, solver=solver)
+        best = min(best, dyn.sim_seconds)
+    moves = []
+    for site in WRISTS:
+        vk, vd = wrist_speed(kin, site), wrist_speed(dyn, site)
+        for a, b in movements(kin, site):
+            moves.append(
+                {
+                    "site": site,
+                    "start": a / kin.fps,
+                    "end": b / kin.fps,
+                    "sparc": [sparc(vk[a:b], kin.fps), sparc(vd[a:b], kin.fps)],
+                    "peak_speed": [float(vk[a:b].max()), float(vd[a:b].max())],
+                }
+            )
+    ratio = dyn.torque_peak / dyn.torque_limit
+    j = int(np.unravel_index(np.argmax(ratio), ratio.shape)[1])
+    need, need_joint = demand(kin, score)
+    dur = float(kin.time[-1])
+    return {
+        "duration_s": dur,
+        "holds": {"kinematic": holds(kin), "physics": holds(dyn)},
+        "movements": moves,
+        "penetration_mm": {
+            "kinematic": 1000 * penetrations(kin, score, solver),
+            "physics": 1000 * penetrations(dyn, score, solver),
+        },
+        "torque": {
+            "physics_peak_ratio": float(ratio.max()),
+            "physics_peak_joint": dyn.joints[j],
+            "saturated_frames": int((ratio > 0.999).any(axis=1).sum()),
+            "kinematic_demand_ratio": need,
+            "kinematic_demand_joint": need_joint,
+        },
+        "tracking_site_mm": 1000 * float(dyn.tracking_site.max()),
+        "energy_j": float(dyn.energy[-1]),
+        "clipped_to_range": dyn.clipped,
+        "kinematic_s": kin_s,
+        "physics_s": best,
+        "physics_real_time": dur / best,
+    }
+
+
+def side_by_side(name: str, out: Path, size=(280, 260), fps: float = 25.0, solver=None) -> None:
+    """An animated GIF of example ``name``: the kinematic rollout on the left, the physics
+    one on the right (front camera, ``fps`` frames per second)."""
+    from PIL import Image, ImageDraw
+
+    from azee_mj.render import FrameRenderer
+
+    score = load_score(ROOT / "examples" / f"{name}.json")
+    solver = solver or make_solver()
+    kin = timeline.realize(score, solver=solver)
+    dyn = physics.simulate(kin, score, solver=solver)
+    step = max(1, round(kin.fps / fps))
+    frames = []
+    with FrameRenderer(camera="front", size=size) as fr:
+        for f in range(0, len(kin.time), step):
+            tiles = []
+            for label, r in (("kinematic", kin), ("physics", dyn)):
+                img = Image.fromarray(fr.render(r.qpos[f]))
+                ImageDraw.Draw(img).text((8, 6), f"{label}  t = {r.time[f]:.2f} s", fill=(0, 0, 0))
+                tiles.append(img)
+            both = Image.new("RGB", (2 * size[0], size[1]))
+            both.paste(tiles[0], (0, 0))
+            both.paste(tiles[1], (size[0], 0))
+            frames.append(both.quantize(colors=64))
+    frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
+
+
+def _line(name: str, r: dict) -> str:
+    h, mv, tq = r["holds"], r["movements"], r["torque"]
+    sk = np.mean([m["sparc"][0] for m in mv]) if mv else float("nan")
+    sd = np.mean([m["sparc"][1] for m in mv]) if mv else float("nan")
+    vk = max((m["peak_speed"][0] for m in mv), default=0.0)
+    vd = max((m["peak_speed"][1] for m in mv), default=0.0)
+    return (
+        f"| {name} | {h['kinematic']['place_mm']:.2f} / {h['physics']['place_mm']:.2f} "
+        f"| {h['kinematic']['angle_deg']:.2f} / {h['physics']['angle_deg']:.2f} "
+        f"| {sk:.2f} / {sd:.2f} | {vk:.2f} / {vd:.2f} "
+        f"| {r['penetration_mm']['kinematic']:.2f} / {r['penetration_mm']['physics']:.2f} "
+        f"| {100 * tq['kinematic_demand_ratio']:.0f}% ({tq['kinematic_demand_joint']}) "
+        f"| {100 * tq['physics_peak_ratio']:.0f}% | {r['physics_real_time']:.1f}x |"
+    )
+
+
+HEADER = (
+    "| score | hold place mm (kin / phys) | hold angle deg | mean SPARC | peak wrist m/s "
+    "| penetration mm | kinematic torque need / limit | physics peak / limit | physics speed |\n"
+    "|---|---|---|---|---|---|---|---|---|"
+)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="two examples and a 3-sign sentence")
+    ap.add_argument("--repeat", type=int, default=1, help="simulations per score (best time)")
+    ap.add_argument("--gif", metavar="EXAMPLE", help="only write docs/physics-EXAMPLE.gif")
+    args = ap.parse_args()
+    if args.gif:
+        out = ROOT / "docs" / f"physics-{args.gif}.gif"
+        side_by_side(args.gif, out)
+        print(f"{out}: written")
+        return
+    solver = make_solver()
+    names = ["bien", "armoire"] if args.quick else EXAMPLES
+    n_sent = 3 if args.quick else 10
+    scores = {n: load_score(ROOT / "examples" / f"{n}.json") for n in names}
+    scores[f"sentence-{n_sent}"] = load_score(
+        sentence([SIGNS[i % len(SIGNS)] for i in range(n_sent)])
+    )
+    results = {}
+    print(HEADER)
+    for name, score in scores.items():
+        results[name] = compare(score, solver, args.repeat)
+        print(_line(name, results[name]), flush=True)
+    out = HERE / "results" / ("physics-quick.json" if args.quick else "physics.json")
+    doc = {"machine": machine(repeat=args.repeat), "results": results}
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"{out}: written")
+
+
+if __name__ == "__main__":
+    main()

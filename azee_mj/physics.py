@@ -352,7 +352,7 @@ def _between(x: np.ndarray, sub: int) -> np.ndarray:
         return x.copy()
     w = (np.arange(sub) / sub).reshape(-1, *([1] * (x.ndim - 1)))
     inner = x[:-1, None] * (1.0 - w) + x[1:, None] * w
-    return np.concatenate([inner.reshape(-1, *x.shape[1:]), x[-1:]])
+    return np.concatenate([inner.reshape((len(x) - 1) * sub, *x.shape[1:]), x[-1:]])
 
 
 def feed_forward(

@@ -47,6 +47,7 @@ __all__ = [
     "PhysicsError",
     "Settings",
     "actuated_model",
+    "frame_step",
     "realize",
     "simulate",
     "torque_limits",
@@ -101,6 +102,12 @@ class Settings:
 # ---------------------------------------------------------------------------------------
 # The actuated model
 # ---------------------------------------------------------------------------------------
+
+
+def frame_step(fps: float, timestep: float) -> float:
+    """The longest step [s] no longer than ``timestep`` that cuts a frame period
+    ``1 / fps`` into whole steps."""
+    return 1.0 / (fps * int(np.ceil(1.0 / (fps * timestep) - 1e-9)))
 
 
 def _track_of(signer_map: SignerMap) -> dict[str, str]:
@@ -637,8 +644,7 @@ def simulate(
         score = sc.load_score(score)
     smap = signer_map or DEFAULT_MAP
     score_ties = ties(score, smap)
-    sub = int(np.ceil(1.0 / (rollout.fps * settings.timestep) - 1e-9))
-    settings = dataclasses.replace(settings, timestep=1.0 / (rollout.fps * sub))
+    settings = dataclasses.replace(settings, timestep=frame_step(rollout.fps, settings.timestep))
     m = actuated_model(score_ties, settings, smap)
     ref = reference(m, rollout, score_ties, settings)
     traj = step(m, ref, len(rollout.time), score, progress)

@@ -99,12 +99,16 @@ def penetrations(r, score, solver) -> float:
 
 
 def holds(r) -> dict:
-    """The worst constraint error at the holds: place [mm], orient and look [deg]."""
-    place = [t.worst for t in r.traces if t.unit == "m"]
-    angle = [t.worst for t in r.traces if t.unit != "m"]
+    """The worst error at the holds of the constraints with the default tolerance (1 mm,
+    1 degree): place [mm], orient and look [deg]; and whether the looser ones (a facing
+    rule of 15 degrees, ...) are within theirs."""
+    tight = [t for t in r.traces if t.tol <= (1e-3 if t.unit == "m" else np.radians(1.0)) + 1e-9]
+    place = [t.worst for t in tight if t.unit == "m"]
+    angle = [t.worst for t in tight if t.unit != "m"]
     return {
         "place_mm": 1000.0 * max(place, default=0.0),
         "angle_deg": float(np.degrees(max(angle, default=0.0))),
+        "loose_within_tolerance": all(t.ok for t in r.traces if t not in tight),
     }
 
 
@@ -124,9 +128,11 @@ def compare(score, solver, repeat: int = 1) -> dict:
     t = time.perf_counter()
     kin = timeline.realize(score, solver=solver)
     kin_s = time.perf_counter() - t
-    best, dyn = float("inf"), None
+    best, cpu, dyn = float("inf"), float("inf"), None
     for _ in range(repeat):
+        c = time.process_time()
         dyn = physics.simulate(kin, score, solver=solver)
+        cpu = min(cpu, time.process_time() - c)
         best = min(best, dyn.sim_seconds)
     moves = []
     for site in WRISTS:
@@ -165,8 +171,33 @@ def compare(score, solver, repeat: int = 1) -> dict:
         "clipped_to_range": dyn.clipped,
         "kinematic_s": kin_s,
         "physics_s": best,
+        "physics_cpu_s": cpu,
         "physics_real_time": dur / best,
+        "physics_real_time_cpu": dur / cpu,
+        "stages_cpu_s": stages(kin, score),
+        "load_average": os.getloadavg()[0],
     }
+
+
+def stages(kin, score) -> dict:
+    """CPU seconds of the simulation's stages: building the model, the reference (inverse
+    dynamics at the frames, the spline), the stepping, and the outputs (site positions and
+    residual traces, by difference with a whole run)."""
+    out = {}
+    c = time.process_time()
+    ties = physics.ties(score)
+    settings = physics.Settings(timestep=physics.frame_step(kin.fps, 0.002))
+    m = physics.actuated_model(ties, settings)
+    out["build"] = time.process_time() - c
+    c = time.process_time()
+    ref = physics.reference(m, kin, ties, settings)
+    out["reference"] = time.process_time() - c
+    c = time.process_time()
+    physics.step(m, ref, len(kin.time), score)
+    out["step"] = time.process_time() - c
+    out["steps"] = len(ref.ctrl)
+    out["step_us"] = 1e6 * out["step"] / len(ref.ctrl)
+    return out
 
 
 def side_by_side(name: str, out: Path, size=(280, 260), fps: float = 25.0, solver=None) -> None:
@@ -208,13 +239,14 @@ def _line(name: str, r: dict) -> str:
         f"| {sk:.2f} / {sd:.2f} | {vk:.2f} / {vd:.2f} "
         f"| {r['penetration_mm']['kinematic']:.2f} / {r['penetration_mm']['physics']:.2f} "
         f"| {100 * tq['kinematic_demand_ratio']:.0f}% ({tq['kinematic_demand_joint']}) "
-        f"| {100 * tq['physics_peak_ratio']:.0f}% | {r['physics_real_time']:.1f}x |"
+        f"| {100 * tq['physics_peak_ratio']:.0f}% | {r['physics_real_time_cpu']:.1f}x "
+        f"({r['physics_real_time']:.1f}x) |"
     )
 
 
 HEADER = (
     "| score | hold place mm (kin / phys) | hold angle deg | mean SPARC | peak wrist m/s "
-    "| penetration mm | kinematic torque need / limit | physics peak / limit | physics speed |\n"
+    "| penetration mm | kinematic torque need / limit | physics peak / limit | physics x real time, CPU (wall) |\n"
     "|---|---|---|---|---|---|---|---|---|"
 )
 

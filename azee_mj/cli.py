@@ -352,6 +352,7 @@ def _cmd_report(args, run: _Run) -> int:
         args.output,
         fps=fps,
         progress=_Progress("report"),
+        dynamics=args.dynamics,
     )
     for p in paths:
         print(f"{p}: written")
@@ -536,6 +537,9 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("-o", "--output", required=True, help="REPORT.html, or DIR/ for PNG files")
     h.add_argument(
         "--fps", type=float, default=DEFAULT_FPS, help=f"frames per second {_FPS_DEFAULT}"
+    )
+    h.add_argument(
+        "--dynamics", action="store_true", help="report the physics mode (adds the dynamics)"
     )
     h.set_defaults(func=_cmd_report)
     return p

@@ -49,15 +49,41 @@ class Realization:
     records: tuple[tuple[ik.IKProblem, ik.IKResult], ...]
 
 
-def realize_recorded(score, fps: float = 50.0, progress=None) -> Realization:
-    """Realize ``score`` keeping every IK problem and result (with its cost history)."""
+def realize_recorded(
+    score, fps: float = 50.0, progress=None, dynamics: bool = False
+) -> Realization:
+    """Realize ``score`` keeping every IK problem and result (with its cost history);
+    ``dynamics``: then simulate it (:func:`azee_mj.physics.simulate`)."""
     from azee_mj.schedule import make_solver
     from azee_mj.timeline import realize
 
     s = score if isinstance(score, sc.Score) else sc.load_score(score)
     recorder = Recorder()
-    rollout = realize(s, fps=fps, solver=make_solver(on_solve=recorder), progress=progress)
+    solver = make_solver(on_solve=recorder)
+    rollout = realize(s, fps=fps, solver=solver, progress=progress)
+    if dynamics:
+        from azee_mj.physics import simulate
+
+        rollout = simulate(rollout, s, solver=solver)
     return Realization(s, rollout, tuple(recorder.records))
+
+
+def _dynamics_table(ro) -> str:
+    """Per block of a physics rollout: tracking error, peak torque against its limit and
+    energy (empty for a kinematic rollout)."""
+    if not hasattr(ro, "torque_limit"):
+        return ""
+    rows = "\n".join(
+        f"<tr><td>{html.escape(b.block)}</td><td>{b.tracking_site * 1000:.2f}</td>"
+        f"<td>{np.degrees(b.tracking_joint):.2f}</td><td>{100 * b.peak_ratio:.0f}% "
+        f"({html.escape(b.peak_joint)})</td><td>{b.energy:.2f}</td></tr>"
+        for b in ro.blocks()
+    )
+    return (
+        f"<h2>Dynamics</h2>\n<p>{html.escape(ro.summary())}</p>\n<table><tr><th>block</th>"
+        "<th>tracking, sites [mm]</th><th>tracking, joints [deg]</th>"
+        "<th>peak torque / limit</th><th>energy [J]</th></tr>\n" + rows + "\n</table>"
+    )
 
 
 def _plt():
@@ -289,6 +315,7 @@ th{{background:#eee}}img{{max-width:100%}}</style></head><body>
 <th>worst residual</th></tr>
 {chr(10).join(rows)}
 </table>
+{_dynamics_table(ro)}
 {figs}
 </body></html>
 """
@@ -300,10 +327,12 @@ def write_report(
     *,
     fps: float = 50.0,
     progress: Callable[[float], None] | None = None,
+    dynamics: bool = False,
 ) -> list[Path]:
     """Realize ``score`` and write the report to ``out``: an ``.html`` page with the figures
     embedded, or, when ``out`` ends with ``/`` or is a directory, ``timeline.png``,
-    ``ik_problems.png``, ``convergence.png`` and ``residuals.png`` in it. Atomic writes;
+    ``ik_problems.png``, ``convergence.png`` and ``residuals.png`` in it. ``dynamics``: in
+    the physics mode, the page adds a table of the dynamics per block. Atomic writes;
     returns the paths written."""
     from azee_mj.files import atomic_path
     from azee_mj.timing import check_fps
@@ -317,7 +346,7 @@ def write_report(
     fps = check_fps(fps)
     _plt()
     tick = progress or (lambda f: None)
-    r = realize_recorded(score, fps=fps, progress=lambda f: tick(0.5 * f))
+    r = realize_recorded(score, fps=fps, progress=lambda f: tick(0.5 * f), dynamics=dynamics)
     images = {}
     for k, (key, _, fn) in enumerate(FIGURES):
         images[key] = _png(fn(r))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import mujoco
@@ -107,7 +108,7 @@ def test_divergence_names_the_time_and_the_block(bien):
     m = physics.actuated_model(ties)
     ref = physics.reference(m, kin, ties, physics.Settings())
     ctrl = ref.ctrl.copy()
-    ctrl[int(round(0.45 / ref.dt))] = np.nan
+    ctrl[round(0.45 / ref.dt)] = np.nan
     bad = dataclasses.replace(ref, ctrl=ctrl)
     with pytest.raises(physics.PhysicsError) as e:
         physics.step(m, bad, len(kin.time), score)
@@ -167,3 +168,25 @@ def test_cli_dynamics_refuses_the_flattened_mode(tmp_path, capsys):
     assert main(["realize", str(BIEN), "--dynamics", "--mode", "flattened", "-o", str(out)]) == 2
     assert "--dynamics follows the multitrack realization" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_score_without_place_or_orient_has_no_ties(solver):
+    doc = json.loads(BIEN.read_text())
+    root = doc["root"]
+    root["children"] = [c for c in root["children"] if c["name"] == "PERM"]
+    score = load_score(doc)
+    assert physics.ties(score) == ()
+    kin = timeline.realize(score, solver=solver)
+    p = physics.simulate(kin, score, solver=solver)
+    assert p.traces == () and p.tracking_site.max() < 1e-3
+    assert (p.torque_peak <= p.torque_limit).all()
+
+
+def test_html_report_adds_the_dynamics_per_block(tmp_path):
+    pytest.importorskip("matplotlib", reason="the report needs matplotlib (azee_mj[plot])")
+    out = tmp_path / "r.html"
+    assert main(["report", str(BIEN), "--dynamics", "-o", str(out)]) == 0
+    page = out.read_text()
+    assert "<h2>Dynamics</h2>" in page and "peak torque / limit" in page
+    for block in ("BIEN.PERM", "BIEN.K1", "BIEN.T", "BIEN.K2"):
+        assert f"<tr><td>{block}</td>" in page

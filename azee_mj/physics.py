@@ -73,6 +73,11 @@ class PhysicsError(AzeeError):
 FALLBACK_LIMITS = {"hand": 2.0, "eyes": 0.2, "face": 1.0, "hinge": 1.0, "slide": 5.0}
 
 
+#: How far past its range a simulated joint may be and still be clipped back into it
+#: [rad or m]: the slack of MuJoCo's soft joint limits.
+LIMIT_SLACK = 1e-3
+
+
 @dataclasses.dataclass(frozen=True)
 class Settings:
     """How the signer is simulated.
@@ -543,8 +548,8 @@ class DynamicRollout(Rollout):
     timestep: float = 0.002
     #: Wall time the simulation took [s] (not stored in files).
     sim_seconds: float = 0.0
-    #: How far the simulation took a joint past its range, clipped in ``qpos`` [rad or m]
-    #: (MuJoCo's limits are soft; not stored in files).
+    #: The largest slack of a joint past its range clipped from ``qpos`` (at most
+    #: :data:`LIMIT_SLACK`; MuJoCo's limits are soft) [rad or m]; not stored in files.
     clipped: float = 0.0
 
     def summary(self) -> str:
@@ -689,11 +694,14 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
 
     base = solver.model if solver is not None else load_model()
     # MuJoCo's joint limits are soft: a joint held at its limit sits up to ~1e-4 rad past
-    # it. The stored postures are clipped to the ranges (``clipped`` says by how much).
+    # it. Such slack is clipped from the stored postures (``clipped`` says how much); a
+    # joint forced further past its limit is left as it is, for ``check`` to report.
     lim = base.jnt_limited.astype(bool)
     qa = base.jnt_qposadr[lim]
     q = traj.qpos.copy()
-    q[:, qa] = np.clip(q[:, qa], base.jnt_range[lim, 0], base.jnt_range[lim, 1])
+    inside = np.clip(q[:, qa], base.jnt_range[lim, 0], base.jnt_range[lim, 1])
+    slack = np.abs(inside - q[:, qa]) <= LIMIT_SLACK
+    q[:, qa] = np.where(slack, inside, q[:, qa])
     clipped = float(np.abs(q - traj.qpos).max()) if q.size else 0.0
     traj = dataclasses.replace(traj, qpos=q)
     d = mujoco.MjData(base)

@@ -3,16 +3,17 @@
     python bench/physics.py [--quick] [--repeat 3]
 
 For each score, in both modes: the worst constraint error at the holds (place [mm], orient
-and look [deg]); per movement of each wrist (a run of frames where the wrist moves faster
-than 5 cm/s in the kinematic rollout), its smoothness (SPARC, Balasubramanian et al. 2015:
-closer to 0 is smoother; minimum-jerk reaches about -1.6) and its peak wrist speed [m/s];
+and look [deg]); per movement of each wrist (:func:`azee_mj.movement.segments` of the
+kinematic rollout's wrist speed, the same frames for both modes), its smoothness (SPARC,
+:func:`azee_mj.movement.sparc`: closer to 0 is smoother) and its peak wrist speed [m/s];
 the deepest penetration outside the contacts the score asks for [mm]; the torques (the
 physics mode's peak against its limit, and the torque the kinematic frames would need,
-from inverse dynamics, against the same limit); the wall time and the real-time factor of
-the simulation on one core. ``--quick`` runs two examples and a 3-sign sentence.
+from inverse dynamics, against the same limit); the CPU and wall time and the real-time
+factor of the simulation on one core. ``--quick`` runs two examples and a 3-sign sentence.
 
 Results go to ``bench/results/physics.json``. The functions (:func:`compare`,
-:func:`movements`, :func:`sparc`, :func:`penetrations`) are importable for other benches.
+:func:`penetrations`, :func:`holds`, :func:`demand`, :func:`stages`) are importable for
+other benches (``bench/motion.py`` can call ``compare`` for the physics columns).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ sys.path.insert(0, str(HERE))
 from machine import machine
 from realize import SIGNS, sentence
 
+from azee_mj import movement as mv
 from azee_mj import physics, timeline
 from azee_mj.constraints import penetration_depth
 from azee_mj.schedule import Schedule, make_solver
@@ -42,47 +44,12 @@ from azee_mj.score import load_score
 
 ROOT = HERE.parent
 EXAMPLES = ["arbre", "armoire", "bien", "info-about", "nicht-sondern", "penser", "pointing"]
-#: A wrist moving faster than this is in a movement [m/s].
-MOVING = 0.05
 WRISTS = ("WR_R", "WR_L")
 
 
-def sparc(speed: np.ndarray, fs: float, pad: int = 4, fc: float = 10.0, amp: float = 0.05):
-    """Spectral arc length of a speed profile sampled at ``fs`` [Hz] (Balasubramanian et
-    al. 2015): the arc length of its normalized magnitude spectrum up to the last frequency
-    above ``amp`` (at most ``fc`` Hz); negative, closer to 0 is smoother."""
-    n = int(2 ** (np.ceil(np.log2(len(speed))) + pad))
-    f = np.arange(n) * fs / n
-    mag = np.abs(np.fft.fft(speed, n))
-    mag = mag / mag.max()
-    sel = f <= fc
-    f, mag = f[sel], mag[sel]
-    above = np.flatnonzero(mag >= amp)
-    f, mag = f[above[0] : above[-1] + 1], mag[above[0] : above[-1] + 1]
-    if len(f) < 2:
-        return 0.0
-    return float(-np.sum(np.hypot(np.diff(f) / (f[-1] - f[0]), np.diff(mag))))
-
-
 def wrist_speed(r, site: str) -> np.ndarray:
-    """(T,) speed of ``site`` [m/s] (central differences of its positions)."""
-    p = r.site_pos[:, r.site_names.index(site)]
-    return np.linalg.norm(np.gradient(p, 1.0 / r.fps, axis=0), axis=1)
-
-
-def movements(r, site: str, min_frames: int = 4) -> list[tuple[int, int]]:
-    """Frame ranges [a, b) where ``site`` moves faster than :data:`MOVING`, padded by one
-    frame each side."""
-    moving = wrist_speed(r, site) > MOVING
-    out, a = [], None
-    for f, m in enumerate([*moving, False]):
-        if m and a is None:
-            a = f
-        elif not m and a is not None:
-            if f - a >= min_frames:
-                out.append((max(0, a - 1), min(len(moving), f + 1)))
-            a = None
-    return out
+    """(T,) speed of ``site`` in rollout ``r`` [m/s] (:func:`azee_mj.movement.speed`)."""
+    return mv.speed(r.site_pos[:, r.site_names.index(site)], r.fps)
 
 
 def penetrations(r, score, solver) -> float:
@@ -137,13 +104,14 @@ def compare(score, solver, repeat: int = 1) -> dict:
     moves = []
     for site in WRISTS:
         vk, vd = wrist_speed(kin, site), wrist_speed(dyn, site)
-        for a, b in movements(kin, site):
+        for a, b in mv.segments(vk, kin.fps):
+            b += 1
             moves.append(
                 {
                     "site": site,
                     "start": a / kin.fps,
                     "end": b / kin.fps,
-                    "sparc": [sparc(vk[a:b], kin.fps), sparc(vd[a:b], kin.fps)],
+                    "sparc": [mv.sparc(vk[a:b], kin.fps), mv.sparc(vd[a:b], kin.fps)],
                     "peak_speed": [float(vk[a:b].max()), float(vd[a:b].max())],
                 }
             )

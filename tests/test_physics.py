@@ -163,6 +163,17 @@ def test_cli_realize_dynamics(tmp_path, capsys, model):
     assert main(["check", str(out), "--score", str(BIEN)]) == 0
 
 
+def test_a_physics_rollout_exports_as_a_kinematic_one(bien, tmp_path, capsys):
+    pytest.importorskip("bvhio", reason="the BVH export needs bvhio (azee_mj[export])")
+    _, _, p = bien
+    npz = tmp_path / "b.npz"
+    save_rollout(npz, p)
+    for suffix in ("bvh", "csv", "html"):
+        out = tmp_path / f"b.{suffix}"
+        assert main(["export", str(npz), "--score", str(BIEN), "-o", str(out)]) == 0
+        assert out.stat().st_size > 0
+
+
 def test_cli_dynamics_refuses_the_flattened_mode(tmp_path, capsys):
     out = tmp_path / "b.npz"
     assert main(["realize", str(BIEN), "--dynamics", "--mode", "flattened", "-o", str(out)]) == 2

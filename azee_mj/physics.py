@@ -7,9 +7,10 @@ Every hinge and slide gets an actuator whose force is clamped to a human limit
 (:func:`torque_limits`):
 
 * **joint tracking**: ``tau = tau_ff + kp (q_ref - q) + kv (qd_ref - qd)``, with the
-  feed-forward ``tau_ff`` the inverse dynamics (``mj_inverse``, constraints off) of the
-  reference's cubic-spline position, velocity and acceleration, and ``kp``, ``kv`` a
-  critically damped joint of the tracking frequency on the joint's own inertia. The PD
+  feed-forward ``tau_ff`` the inverse dynamics (``mj_rne``: ``mj_inverse`` with the
+  constraints off) of the reference's cubic-spline position, velocity and acceleration,
+  and ``kp``, ``kv`` a critically damped joint of the tracking frequency on the joint's
+  own inertia. The PD
   part is MuJoCo's affine actuator bias, so the ``implicitfast`` integrator treats its
   damping implicitly.
 * **the score's constraints**: during each constraint block, every site a ``place`` names
@@ -94,7 +95,7 @@ class Settings:
     timestep: float = 0.002
     frequency: float = 8.0
     damping_ratio: float = 1.0
-    eq_solref: tuple[float, float] = (0.02, 1.0)
+    eq_solref: tuple[float, float] = (0.008, 1.0)
     eq_solimp: tuple[float, float, float] = (0.9, 0.95, 0.001)
 
     def __post_init__(self):
@@ -248,6 +249,10 @@ def _add_tie(spec: mujoco.MjSpec, i: int, tie: Tie, settings: Settings) -> None:
     eq.solimp = [*settings.eq_solimp, 0.5, 2.0]
     if tie.kind == "body":
         eq.data[10] = 1.0  # torquescale: rotation weighs as 1 m of translation
+    # the mocap body has no mass: the force on it is the equality's pull on the signer
+    sensor = spec.add_sensor()
+    sensor.name, sensor.type = f"tie{i}", mujoco.mjtSensor.mjSENS_FORCE
+    sensor.objtype, sensor.objname = mujoco.mjtObj.mjOBJ_SITE, f"tie{i}"
 
 
 # ---------------------------------------------------------------------------------------
@@ -275,11 +280,11 @@ class Reference:
 
 
 def reference(
-    model: mujoco.MjModel, rollout: Rollout, score_ties: tuple[Tie, ...], settings: Settings
+    model: mujoco.MjModel, rollout: Rollout, score_ties: tuple[Tie, ...] = ()
 ) -> Reference:
     """The kinematic rollout as a cubic spline through its frames, sampled at the steps
-    (``model.opt.timestep`` must divide the frame period), and the feed-forward from
-    ``mj_inverse`` on it with the constraints off.
+    (``model.opt.timestep`` must divide the frame period), its inverse dynamics
+    (:func:`feed_forward`) and the poses of the sites the ties hold.
 
     The velocity and acceleration are the samples' backward and central differences, not
     the spline's derivatives: these are what the semi-implicit step produces when it
@@ -321,7 +326,7 @@ def reference(
     # velocity: the effective inertia is M + dt (kv + b), so the feed-forward carries the
     # extra dt (kv + b) qdd_ref or the body lags the reference.
     implicit = dt * (kv + m.dof_damping[dof])
-    ctrl = ff[:, dof] + kp * q[:, m.jnt_qposadr[jdof]] + (kv * qd + implicit * qdd)[:, dof]
+    ctrl = ff[:, dof] + kp * q[:, m.jnt_qposadr[jdof]] + kv * qd[:, dof] + implicit * qdd[:, dof]
     steps = np.arange(n) * dt
     active = np.zeros((n, len(score_ties)), bool)
     for k, t in enumerate(score_ties):
@@ -339,12 +344,14 @@ def reference(
 class Trajectory:
     """What the simulation did, per frame: ``qpos`` (T, nq), ``torque`` (T, nu) the
     actuator forces at the frame, ``torque_peak`` (T, nu) the largest magnitude over the
-    steps that end at the frame, ``energy`` (T,) the actuators' absolute work so far [J]."""
+    steps that end at the frame, ``energy`` (T,) the actuators' absolute work so far [J],
+    ``tie_force`` (T,) the largest force an equality exerted over those steps [N]."""
 
     qpos: np.ndarray
     torque: np.ndarray
     torque_peak: np.ndarray
     energy: np.ndarray
+    tie_force: np.ndarray
 
 
 def block_at(score: sc.Score, t: float) -> str:
@@ -458,8 +465,13 @@ def step(
     q = np.empty((frames, m.nq))
     tau = np.empty((frames, m.nu))
     peak = np.empty((frames, m.nu))
-    energy = np.zeros(frames)
+    energy, pull = np.zeros(frames), np.zeros(frames)
     q[0], tau[0], peak[0] = d.qpos, d.actuator_force, np.abs(d.actuator_force)
+    acts = _sensor_columns(
+        m, [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(m.nu)]
+    )
+    n_ties = sum(1 for b in range(m.nbody) if m.body_mocapid[b] >= 0)
+    ties = _sensor_columns(m, [f"tie{i}" for i in range(n_ties)]).reshape(n_ties, 3)
     out_state = np.empty((1, sub, state.size))
     out_sens = np.empty((1, sub, m.nsensordata))
     runner = mjrollout.Rollout(nthread=0)
@@ -477,7 +489,7 @@ def step(
                 sensordata=out_sens,
                 skip_checks=True,
             )
-            force = out_sens[0, :, : m.nu]
+            force = out_sens[0][:, acts]
             state = out_state[0, -1].copy()
             bad = _warning(d, before) or ("" if np.isfinite(state).all() else "non-finite state")
             if bad:
@@ -493,11 +505,22 @@ def step(
             tau[f], peak[f] = force[-1], np.abs(force).max(axis=0)
             power = np.abs(force * out_state[0][:, vel]).sum()
             energy[f] = energy[f - 1] + power * ref.dt
+            if n_ties:
+                pull[f] = np.linalg.norm(out_sens[0][:, ties], axis=-1).max()
             if progress and f % 50 == 0:
                 progress(f / frames)
     finally:
         runner.close()
-    return Trajectory(q, tau, peak, energy)
+    return Trajectory(q, tau, peak, energy, pull)
+
+
+def _sensor_columns(m: mujoco.MjModel, names: list[str]) -> np.ndarray:
+    """The ``sensordata`` columns of the sensors ``names``, in order."""
+    cols = []
+    for n in names:
+        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, n)
+        cols.extend(range(m.sensor_adr[k], m.sensor_adr[k] + m.sensor_dim[k]))
+    return np.array(cols, int)
 
 
 # ---------------------------------------------------------------------------------------
@@ -509,7 +532,8 @@ def step(
 class BlockDynamics:
     """One block's dynamics: the worst tracking error of a site [m] and of a joint [rad]
     against the kinematic reference, the peak torque as a fraction of its limit and its
-    joint, and the actuators' work [J] over the block."""
+    joint, the actuators' work [J] over the block, and the largest force an equality
+    exerted [N]."""
 
     block: str
     start: float
@@ -519,6 +543,7 @@ class BlockDynamics:
     peak_ratio: float
     peak_joint: str
     energy: float
+    tie_force: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -534,6 +559,8 @@ class DynamicRollout(Rollout):
       energy: (T,) the actuators' absolute work since the start [J].
       tracking_site: (T,) the largest distance of a site from the reference's [m].
       tracking_joint: (T,) the largest joint deviation from the reference [rad or m].
+      tie_force: (T,) the largest force a ``place`` / ``orient`` equality exerted on the
+        body over the steps ending at each frame [N]: help from outside the muscles.
       timestep: the simulation step [s].
     """
 
@@ -545,6 +572,7 @@ class DynamicRollout(Rollout):
     energy: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     tracking_site: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     tracking_joint: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    tie_force: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     timestep: float = 0.002
     #: Wall time the simulation took [s] (not stored in files).
     sim_seconds: float = 0.0
@@ -561,7 +589,8 @@ class DynamicRollout(Rollout):
         return (
             f"physics: peak torque {100 * ratio.max():.0f}% of its limit ({self.joints[j]}), "
             f"energy {self.energy[-1]:.1f} J, tracking within "
-            f"{1000 * self.tracking_site.max():.1f} mm of the kinematic sites; "
+            f"{1000 * self.tracking_site.max():.1f} mm of the kinematic sites, equalities "
+            f"pulling at most {self.tie_force.max():.1f} N; "
             f"simulated at {speed:.1f}x real time (step {1000 * self.timestep:g} ms)"
         )
 
@@ -589,6 +618,7 @@ class DynamicRollout(Rollout):
                     float(ratio.max()),
                     self.joints[j],
                     float(self.energy[f1 - 1] - self.energy[f0]),
+                    float(self.tie_force[f0:f1].max()),
                 )
             )
         return out
@@ -602,6 +632,7 @@ class DynamicRollout(Rollout):
             "timestep_s": self.timestep,
             "peak_torque_ratio": float(ratio.max()) if ratio.size else 0.0,
             "energy_j": float(self.energy[-1]) if self.energy.size else 0.0,
+            "tie_force_n": float(self.tie_force.max()) if self.tie_force.size else 0.0,
             "blocks": [
                 {
                     "block": b.block,
@@ -612,6 +643,7 @@ class DynamicRollout(Rollout):
                     "peak_torque_ratio": b.peak_ratio,
                     "peak_torque_joint": b.peak_joint,
                     "energy_j": b.energy,
+                    "tie_force_n": b.tie_force,
                 }
                 for b in self.blocks()
             ],
@@ -651,7 +683,7 @@ def simulate(
     score_ties = ties(score, smap)
     settings = dataclasses.replace(settings, timestep=frame_step(rollout.fps, settings.timestep))
     m = actuated_model(score_ties, settings, smap)
-    ref = reference(m, rollout, score_ties, settings)
+    ref = reference(m, rollout, score_ties)
     traj = step(m, ref, len(rollout.time), score, progress)
     return _dynamic(rollout, score, m, ref, traj, solver, _time.perf_counter() - t0)
 
@@ -687,6 +719,30 @@ def realize(
         solver=solver,
         progress=lambda f: tick(0.5 + 0.5 * f),
     )
+
+
+def trill_windows(score: sc.Score) -> list[tuple[float, float]]:
+    """The intervals [s] of the blocks with a trill."""
+    return [
+        (b.start, b.end)
+        for b in score.blocks()
+        if any(isinstance(c, sc.Trill) for c in b.constraints)
+    ]
+
+
+def _trill_notes(score: sc.Score, traces):
+    """``traces`` with a reason on those a trill overlaps: a kinematic trace is measured
+    before the trill is added, a simulated one includes the trill's motion."""
+    wins = trill_windows(score)
+    out = []
+    for t in traces:
+        over = [(a, b) for a, b in wins if a < t.end and b > t.start]
+        if over and not t.reason:
+            a, b = over[0]
+            note = f"a trill moves the body from {a:g} to {b:g} s; the residual includes it"
+            t = dataclasses.replace(t, reason=note)
+        out.append(t)
+    return tuple(out)
 
 
 def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
@@ -733,7 +789,7 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
         rollout.site_names,
         site_pos,
         rollout.schedule,
-        score_traces(score, traj.qpos, rollout.fps, solver),
+        _trill_notes(score, score_traces(score, traj.qpos, rollout.fps, solver)),
         stats,
         joints=joints,
         torque=traj.torque,
@@ -743,6 +799,7 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
         energy=traj.energy,
         tracking_site=np.linalg.norm(site_pos - rollout.site_pos, axis=2).max(axis=1),
         tracking_joint=np.abs(traj.qpos - rollout.qpos).max(axis=1),
+        tie_force=traj.tie_force,
         timestep=ref.dt,
         sim_seconds=seconds,
         clipped=clipped,

@@ -76,13 +76,15 @@ def _dynamics_table(ro) -> str:
     rows = "\n".join(
         f"<tr><td>{html.escape(b.block)}</td><td>{b.tracking_site * 1000:.2f}</td>"
         f"<td>{np.degrees(b.tracking_joint):.2f}</td><td>{100 * b.peak_ratio:.0f}% "
-        f"({html.escape(b.peak_joint)})</td><td>{b.energy:.2f}</td></tr>"
+        f"({html.escape(b.peak_joint)})</td><td>{b.energy:.2f}</td><td>{b.tie_force:.1f}</td></tr>"
         for b in ro.blocks()
     )
     return (
         f"<h2>Dynamics</h2>\n<p>{html.escape(ro.summary())}</p>\n<table><tr><th>block</th>"
         "<th>tracking, sites [mm]</th><th>tracking, joints [deg]</th>"
-        "<th>peak torque / limit</th><th>energy [J]</th></tr>\n" + rows + "\n</table>"
+        "<th>peak torque / limit</th><th>energy [J]</th><th>equality pull [N]</th></tr>\n"
+        + rows
+        + "\n</table>"
     )
 
 

@@ -10,9 +10,10 @@ The schedule is stored as parallel arrays and restored as
 (``time``, ``qpos``, ``fps``, ``site_names``, ``site_pos``) loads with an empty schedule,
 no traces and zero stats. A rollout of the physics mode
 (:class:`~azee_mj.physics.DynamicRollout`) adds ``torque_joints`` (nu,), ``torque`` and
-``torque_peak`` (T, nu), ``torque_limit`` (nu,), ``effort``, ``energy``, ``tracking_site``
-and ``tracking_joint`` (T,) and ``timestep``, and loads back as one. The solve times are not stored (they read 0 after loading), so
-that a file depends only on the score, the options and the package version.
+``torque_peak`` (T, nu), ``torque_limit`` (nu,), ``effort``, ``energy``, ``tracking_site``,
+``tracking_joint`` and ``tie_force`` (T,) and ``timestep``, and loads back as one. The solve times
+are not stored (they read 0 after loading), so that a file depends only on the score, the
+options and the package version.
 
 :func:`load_rollout` validates everything it reads (names, shapes, dtypes, finite values,
 fps, sizes announced by array headers before reading them) and raises
@@ -76,7 +77,7 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
 
 
 #: The per-frame (T,) arrays of a physics rollout.
-DYNAMIC_SERIES = ("effort", "energy", "tracking_site", "tracking_joint")
+DYNAMIC_SERIES = ("effort", "energy", "tracking_site", "tracking_joint", "tie_force")
 
 
 def dynamic_arrays(r: DynamicRollout) -> dict[str, np.ndarray]:

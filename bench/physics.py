@@ -65,17 +65,26 @@ def penetrations(r, score, solver) -> float:
     return worst
 
 
-def holds(r) -> dict:
+def holds(r, score) -> dict:
     """The worst error at the holds of the constraints with the default tolerance (1 mm,
-    1 degree): place [mm], orient and look [deg]; and whether the looser ones (a facing
-    rule of 15 degrees, ...) are within theirs."""
+    1 degree): place [mm], orient and look [deg], leaving out the frames a trill moves (a
+    kinematic trace is measured before the trill is added, a simulated one with it); and
+    whether the looser ones (a facing rule of 15 degrees, ...) are within theirs."""
+    trilled = np.zeros(len(r.time), bool)
+    for a, b in physics.trill_windows(score):
+        trilled[(r.time >= a - 1e-9) & (r.time < b)] = True
+
+    def worst(t) -> float:
+        v = t.values[~trilled]
+        return float(np.nanmax(v)) if np.isfinite(v).any() else 0.0
+
     tight = [t for t in r.traces if t.tol <= (1e-3 if t.unit == "m" else np.radians(1.0)) + 1e-9]
-    place = [t.worst for t in tight if t.unit == "m"]
-    angle = [t.worst for t in tight if t.unit != "m"]
+    place = [worst(t) for t in tight if t.unit == "m"]
+    angle = [worst(t) for t in tight if t.unit != "m"]
     return {
         "place_mm": 1000.0 * max(place, default=0.0),
         "angle_deg": float(np.degrees(max(angle, default=0.0))),
-        "loose_within_tolerance": all(t.ok for t in r.traces if t not in tight),
+        "loose_within_tolerance": all(worst(t) <= t.tol for t in r.traces if t not in tight),
     }
 
 
@@ -84,7 +93,7 @@ def demand(kin, score) -> tuple[float, str]:
     dynamics at the simulation's steps, no contact) to the joint's limit, and that joint."""
     ties = physics.ties(score)
     m = physics.actuated_model(ties)
-    ref = physics.reference(m, kin, ties, physics.Settings())
+    ref = physics.reference(m, kin, ties)
     ratio = np.abs(ref.torque_ff) / m.actuator_forcerange[:, 1]
     j = int(np.unravel_index(np.argmax(ratio), ratio.shape)[1])
     return float(ratio.max()), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
@@ -121,7 +130,7 @@ def compare(score, solver, repeat: int = 1) -> dict:
     dur = float(kin.time[-1])
     return {
         "duration_s": dur,
-        "holds": {"kinematic": holds(kin), "physics": holds(dyn)},
+        "holds": {"kinematic": holds(kin, score), "physics": holds(dyn, score)},
         "movements": moves,
         "penetration_mm": {
             "kinematic": 1000 * penetrations(kin, score, solver),
@@ -158,7 +167,7 @@ def stages(kin, score) -> dict:
     m = physics.actuated_model(ties, settings)
     out["build"] = time.process_time() - c
     c = time.process_time()
-    ref = physics.reference(m, kin, ties, settings)
+    ref = physics.reference(m, kin, ties)
     out["reference"] = time.process_time() - c
     c = time.process_time()
     physics.step(m, ref, len(kin.time), score)
@@ -214,7 +223,8 @@ def _line(name: str, r: dict) -> str:
 
 HEADER = (
     "| score | hold place mm (kin / phys) | hold angle deg | mean SPARC | peak wrist m/s "
-    "| penetration mm | kinematic torque need / limit | physics peak / limit | physics x real time, CPU (wall) |\n"
+    "| penetration mm | kinematic torque need / limit | physics peak / limit "
+    "| physics x real time, CPU (wall) |\n"
     "|---|---|---|---|---|---|---|---|---|"
 )
 

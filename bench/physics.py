@@ -145,6 +145,7 @@ def compare(score, solver, repeat: int = 1) -> dict:
         },
         "tracking_site_mm": 1000 * float(dyn.tracking_site.max()),
         "energy_j": float(dyn.energy[-1]),
+        "tie_force_n": float(dyn.tie_force.max()),
         "clipped_to_range": dyn.clipped,
         "kinematic_s": kin_s,
         "physics_s": best,
@@ -216,16 +217,17 @@ def _line(name: str, r: dict) -> str:
         f"| {sk:.2f} / {sd:.2f} | {vk:.2f} / {vd:.2f} "
         f"| {r['penetration_mm']['kinematic']:.2f} / {r['penetration_mm']['physics']:.2f} "
         f"| {100 * tq['kinematic_demand_ratio']:.0f}% ({tq['kinematic_demand_joint']}) "
-        f"| {100 * tq['physics_peak_ratio']:.0f}% | {r['physics_real_time_cpu']:.1f}x "
+        f"| {100 * tq['physics_peak_ratio']:.0f}% ({tq['saturated_frames']}) "
+        f"| {r['tie_force_n']:.0f} | {r['physics_real_time_cpu']:.1f}x "
         f"({r['physics_real_time']:.1f}x) |"
     )
 
 
 HEADER = (
     "| score | hold place mm (kin / phys) | hold angle deg | mean SPARC | peak wrist m/s "
-    "| penetration mm | kinematic torque need / limit | physics peak / limit "
-    "| physics x real time, CPU (wall) |\n"
-    "|---|---|---|---|---|---|---|---|---|"
+    "| penetration mm | kinematic torque need / limit | physics peak / limit (frames at it) "
+    "| equality pull N | physics x real time, CPU (wall) |\n"
+    "|---|---|---|---|---|---|---|---|---|---|"
 )
 
 

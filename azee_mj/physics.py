@@ -189,13 +189,14 @@ def actuated_model(
     score_ties: tuple[Tie, ...] = (),
     settings: Settings = Settings(),
     signer_map: SignerMap = DEFAULT_MAP,
-    path=MODEL_PATH,
+    model=MODEL_PATH,
 ) -> mujoco.MjModel:
-    """The signer of ``path`` built for simulation with :class:`mujoco.MjSpec`: gravity
+    """The signer ``model`` (an MJCF path or a :class:`mujoco.MjSpec`, copied) built for
+    simulation with :class:`mujoco.MjSpec`: gravity
     compensation off, one force-limited PD actuator per hinge or slide (named after its
     joint, ``ctrl`` = ``tau_ff + kp q_ref + kv qd_ref``), and a mocap body and an inactive
     equality per tie (named ``tie<i>``)."""
-    spec = mujoco.MjSpec.from_file(str(path))
+    spec = model.copy() if isinstance(model, mujoco.MjSpec) else mujoco.MjSpec.from_file(str(model))
     for b in spec.bodies:
         b.gravcomp = 0.0
     spec.option.timestep = settings.timestep
@@ -658,6 +659,7 @@ def simulate(
     settings: Settings = Settings(),
     signer_map: SignerMap | None = None,
     solver=None,
+    model=MODEL_PATH,
     progress: Callable[[float], None] | None = None,
 ) -> DynamicRollout:
     """Simulate the signer along the kinematic ``rollout`` of ``score``.
@@ -667,7 +669,9 @@ def simulate(
       score: its score (a :class:`~azee_mj.score.Score` or a path).
       settings: time step, tracking gains and equality softness (:class:`Settings`).
       signer_map: the AZee names of the signer (default: the bundled signer's).
-      solver: an :class:`~azee_mj.ik.Solver` to compute the residual traces with.
+      solver: an :class:`~azee_mj.ik.Solver` on the same signer, to compute the residual
+        traces with (default: one for the bundled signer).
+      model: the signer's MJCF path or :class:`mujoco.MjSpec` (default the bundled one).
       progress: called with the fraction done (0..1).
 
     Returns:
@@ -682,7 +686,11 @@ def simulate(
     smap = signer_map or DEFAULT_MAP
     score_ties = ties(score, smap)
     settings = dataclasses.replace(settings, timestep=frame_step(rollout.fps, settings.timestep))
-    m = actuated_model(score_ties, settings, smap)
+    if solver is None:
+        from azee_mj.schedule import make_solver
+
+        solver = make_solver(model, signer_map=smap)
+    m = actuated_model(score_ties, settings, smap, model)
     ref = reference(m, rollout, score_ties)
     traj = step(m, ref, len(rollout.time), score, progress)
     return _dynamic(rollout, score, m, ref, traj, solver, _time.perf_counter() - t0)
@@ -695,18 +703,20 @@ def realize(
     settings: Settings = Settings(),
     solver=None,
     signer_map: SignerMap | None = None,
+    model=MODEL_PATH,
     progress: Callable[[float], None] | None = None,
 ) -> DynamicRollout:
     """Realize ``score`` kinematically (:func:`azee_mj.timeline.realize`) and simulate the
     signer along it (:func:`simulate`): the physics mode's rollout, frame ``k`` at
-    ``k / fps`` [s]."""
+    ``k / fps`` [s]. ``model``: the signer's MJCF path or spec; ``solver`` (default one
+    for ``model`` and ``signer_map``) must be on the same signer."""
     from azee_mj import timeline
     from azee_mj.schedule import make_solver
 
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     smap = signer_map or DEFAULT_MAP
-    solver = solver or make_solver(signer_map=smap)
+    solver = solver or make_solver(model, signer_map=smap)
     tick = progress or (lambda f: None)
     kin = timeline.realize(
         score, fps=fps, solver=solver, signer_map=smap, progress=lambda f: tick(0.5 * f)
@@ -717,6 +727,7 @@ def realize(
         settings=settings,
         signer_map=smap,
         solver=solver,
+        model=model,
         progress=lambda f: tick(0.5 + 0.5 * f),
     )
 
@@ -746,9 +757,7 @@ def _trill_notes(score: sc.Score, traces):
 
 
 def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
-    from azee_mj.model import load_model
-
-    base = solver.model if solver is not None else load_model()
+    base = solver.model
     # MuJoCo's joint limits are soft: a joint held at its limit sits up to ~1e-4 rad past
     # it. Such slack is clipped from the stored postures (``clipped`` says how much); a
     # joint forced further past its limit is left as it is, for ``check`` to report.

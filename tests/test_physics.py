@@ -204,3 +204,16 @@ def test_html_report_adds_the_dynamics_per_block(tmp_path):
     assert "<h2>Dynamics</h2>" in page and "peak torque / limit" in page
     for block in ("BIEN.PERM", "BIEN.K1", "BIEN.T", "BIEN.K2"):
         assert f"<tr><td>{block}</td>" in page
+
+
+def test_another_signer_given_as_a_spec_is_simulated(solver):
+    import mujoco as mj
+
+    spec = mj.MjSpec.from_file(str(physics.MODEL_PATH))
+    for g in spec.body("palm_R").geoms:  # a heavier right hand: more torque to hold it up
+        g.density *= 4.0
+    score = load_score(BIEN)
+    heavy = physics.realize(score, model=spec)
+    light = physics.realize(score, solver=solver)
+    j = heavy.joints.index("arm_R_flex")
+    assert heavy.torque_peak[:, j].max() > light.torque_peak[:, j].max()

@@ -87,8 +87,7 @@ def _reach(solver, c, q, limb_root) -> Diagnosis | None:
     if not isinstance(c, cn.Place) or limb_root is None or (root := limb_root(c.site)) is None:
         return None
     m, d = solver.model, solver.data
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
+    solver.at(q)
     sid = solver.site_id(c.site)
     chain, b = [], int(m.site_bodyid[sid])
     while b > 0 and b != root:
@@ -173,8 +172,7 @@ def _deepest(solver, q) -> tuple[float, str, str] | None:
     """(depth [m], negative if apart; the two bodies) of the deepest contact MuJoCo finds
     in posture ``q``, or None without any."""
     m, d = solver.model, solver.data
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
+    solver.at(q)
     mujoco.mj_collision(m, d)
     if not d.ncon:
         return None
@@ -184,11 +182,9 @@ def _deepest(solver, q) -> tuple[float, str, str] | None:
 
 
 def _limit(solver, problem, c, q) -> Diagnosis | None:
-    m, d = solver.model, solver.data
+    m = solver.model
     plan = solver.plan(problem)
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    solver.at(q, jacobians=True)
     r, J = plan.rows()
     k = problem.constraints.index(c)
     blk = plan.items[k]

@@ -347,37 +347,12 @@ class Solver:
         q, nat, n_it, polish = self._polish(run.q, plan, history)
         return Attempt(q, (0, nat), run.iterations + n_it, run.stop, polish)
 
-    def _polish(self, q, plan, history, stop=0.05) -> tuple[np.ndarray, float, int, Stop | None]:
-        """The most natural posture among those that meet the constraints, from ``q`` that
-        meets them: Gauss-Newton steps on the naturalness rows in the null space of the
-        constraint and collision rows (and of the joints at a limit the step would cross),
-        each followed by steps back onto the constraints. A step is kept only if every
-        constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
-        naturalness never bends a constraint. Returns (q, natural cost, iterations, why it
-        stopped (None: no polish)).
-
-        Compiled code (``azee_mj._ikcore``): each step minimises the naturalness model
-        plus ``|A s|^2 / (NULL_TOL^2 trace(A^T A))`` times its mean curvature (``A`` the
-        constraint and collision rows), one Cholesky factorisation: directions of ``A``
-        with a singular value over ``NULL_TOL`` of the rows' scale are held still, the rest
-        is the null space; a trust radius from ``NATURAL_STEP``
-        doubling on success up to ``MAX_STEP`` and quartered on failure, at most
-        ``NATURAL_ITER`` steps; two stalls end it (steps that gain under 0.1 %, or no step
-        down to a milliradian that gains)."""
-        free = plan.free
-        mov = np.flatnonzero(~plan.pinned)  # a joint target (a hand shape) pins its joint
-        if self.naturalness is None or not mov.size:
+    def _polish(self, q, plan, history) -> tuple[np.ndarray, float, int, Stop | None]:
+        """The most natural posture that keeps the constraints met from ``q`` (see
+        :meth:`Plan.polish`); none without a ``naturalness``."""
+        if self.naturalness is None:
             return q, 0.0, 0, None
-        q_out, nat, it, hist, why = plan.core.polish(
-            np.ascontiguousarray(q, float),
-            plan.lower[free],
-            plan.upper[free],
-            mov.astype(np.int32),
-            float(stop),
-            plan.collide,
-        )
-        history.extend(hist)
-        return np.frombuffer(q_out).copy(), nat, it, Stop(why)
+        return plan.polish(q, history)
 
     def _restart_points(self, problem, q_start, free, restarts):
         """(start, from the seeder) of the restarts (see
@@ -392,32 +367,9 @@ class Solver:
         return starts.restart_points(q_start, restarts, seeder, generic)
 
     def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True) -> LMRun:
-        """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
-        ``posture * (q - prefer)`` weighted per dof; ``done`` when every constraint row norm is
-        under ``stop`` (its tolerance fraction).
-
-        The run is compiled code (``azee_mj._ikcore``): damping relative to the mean diagonal
-        of ``J^T J`` (``MU0``) times the joint weights, steps from ``mju_boxQP`` inside the
-        joint ranges and a ``MAX_STEP`` trust region, Nielsen's damping update; it stops when
-        done, after three steps of little gain (one with the guide on), or when the damping
-        or the step vanish; with ``early`` also once met and slow (``MET_GAIN``) or slow far
-        from the tolerances (``FAR_COST``, ``FAR_GAIN``). The run says why it stopped
-        (:class:`Stop`)."""
-        free = plan.free
-        q_out, cost, done, it, met, hist, why = plan.core.lm(
-            np.ascontiguousarray(q, float),
-            plan.lower[free],
-            plan.upper[free],
-            self.dof_weight[free],
-            np.ascontiguousarray(plan.prefer[free], float),
-            float(posture),
-            float(stop),
-            int(self.max_iter),
-            plan.collide,
-            early,
-        )
-        history.extend(hist)
-        return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met), Stop(why))
+        """One Levenberg-Marquardt run (see :meth:`Plan.lm`) with this solver's joint
+        weights and iteration budget."""
+        return plan.lm(q, self.dof_weight, self.max_iter, history, posture, stop, early)
 
 
 def _narrow(plan: Plan, problem: IKProblem, q_start: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ from azee_mj.constraints import (
 from azee_mj.kinematics import BodyAxis, BodyOrigin, Const, Lin, SitePos
 from azee_mj.posture import contract
 from azee_mj.posture.contract import BLOCK, GENERIC, JOINT, ORIENT, POINT, TERM
-from azee_mj.posture.problem import IKProblem, Residual
+from azee_mj.posture.problem import IKProblem, LMRun, Residual, Stop
 
 if TYPE_CHECKING:
     from azee_mj.ik import Solver
@@ -271,6 +271,77 @@ class Plan:
         k = self.s.kinematics()
         for c, a, b in self.generic:
             self.r[a:b], self.J[a:b] = c.rows(k)
+
+    def lm(
+        self,
+        q: np.ndarray,
+        weight: np.ndarray,
+        max_iter: int,
+        history: list[float],
+        posture: float = 0.0,
+        stop: float = 0.05,
+        early: bool = True,
+    ) -> LMRun:
+        """One Levenberg-Marquardt run on the constraint rows plus, if ``posture`` > 0, rows
+        ``posture * (q - prefer)`` weighted per dof by ``weight`` (nv,); ``done`` when every constraint row norm is
+        under ``stop`` (its tolerance fraction).
+
+        The run is compiled code (``azee_mj._ikcore``): damping relative to the mean diagonal
+        of ``J^T J`` (``MU0``) times the joint weights, steps from ``mju_boxQP`` inside the
+        joint ranges and a ``MAX_STEP`` trust region, Nielsen's damping update; it stops when
+        done, after three steps of little gain (one with the guide on), or when the damping
+        or the step vanish; with ``early`` also once met and slow (``MET_GAIN``) or slow far
+        from the tolerances (``FAR_COST``, ``FAR_GAIN``). The run says why it stopped
+        (:class:`Stop`)."""
+        free = self.free
+        q_out, cost, done, it, met, hist, why = self.core.lm(
+            np.ascontiguousarray(q, float),
+            self.lower[free],
+            self.upper[free],
+            weight[free],
+            np.ascontiguousarray(self.prefer[free], float),
+            float(posture),
+            float(stop),
+            int(max_iter),
+            self.collide,
+            early,
+        )
+        history.extend(hist)
+        return LMRun(np.frombuffer(q_out).copy(), cost, bool(done), it, bool(met), Stop(why))
+
+    def polish(
+        self, q, history: list[float], stop=0.05
+    ) -> tuple[np.ndarray, float, int, Stop | None]:
+        """The most natural posture among those that meet the constraints, from ``q`` that
+        meets them: Gauss-Newton steps on the naturalness rows in the null space of the
+        constraint and collision rows (and of the joints at a limit the step would cross),
+        each followed by steps back onto the constraints. A step is kept only if every
+        constraint stays within ``stop`` of its tolerance and no contact goes deeper, so
+        naturalness never bends a constraint. Returns (q, natural cost, iterations, why it
+        stopped (None: no polish)).
+
+        Compiled code (``azee_mj._ikcore``): each step minimises the naturalness model
+        plus ``|A s|^2 / (NULL_TOL^2 trace(A^T A))`` times its mean curvature (``A`` the
+        constraint and collision rows), one Cholesky factorisation: directions of ``A``
+        with a singular value over ``NULL_TOL`` of the rows' scale are held still, the rest
+        is the null space; a trust radius from ``NATURAL_STEP``
+        doubling on success up to ``MAX_STEP`` and quartered on failure, at most
+        ``NATURAL_ITER`` steps; two stalls end it (steps that gain under 0.1 %, or no step
+        down to a milliradian that gains)."""
+        free = self.free
+        mov = np.flatnonzero(~self.pinned)  # a joint target (a hand shape) pins its joint
+        if not mov.size:
+            return q, 0.0, 0, None
+        q_out, nat, it, hist, why = self.core.polish(
+            np.ascontiguousarray(q, float),
+            self.lower[free],
+            self.upper[free],
+            mov.astype(np.int32),
+            float(stop),
+            self.collide,
+        )
+        history.extend(hist)
+        return np.frombuffer(q_out).copy(), nat, it, Stop(why)
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Scaled residual (k,) and Jacobian (k, nv) on the posture in ``solver.data``

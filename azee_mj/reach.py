@@ -185,6 +185,34 @@ def _rot_y(t: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+def _goals(solver: ik.Solver, cons, arm_of, meet: str | None):
+    """The reach goals of :func:`arm_seeds` on the posture in the solver's data: (reach:
+    each free arm's first placement, meeting: both hands at ``meet`` when a placement joins
+    them, head_on: the arms bringing a fingertip in face to face, joined: (arm, other arm,
+    the joining placement, the meeting centre) or None)."""
+    d = solver.data
+    reach, meeting, head_on, used, joined = [], [], [], set(), None
+    for c in cons:
+        if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
+            continue
+        used.add(arm)
+        target = solver.kinematics().value(c.target)
+        reach.append((arm, c.site, target))
+        if (f := _head_on(solver, arm, c, cons)) is not None:
+            head_on.append((arm, c.site, target, f))
+        other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
+        if other is not None and other is not arm and meet is not None and not meeting:
+            # each hand a little to its own side, so that they start apart and close in
+            centre = d.site_xpos[solver.site_id(meet)].copy()
+            gap = np.array([0.0, MEET_GAP, 0.0])
+            meeting = [
+                (arm, c.site, centre + arm.out * gap),
+                (other, c.target.site, centre + other.out * gap),
+            ]
+            joined = (arm, other, c, centre)
+    return reach, meeting, head_on, joined
+
+
 def arm_seeds(
     solver: ik.Solver,
     arms,
@@ -232,25 +260,7 @@ def arm_seeds(
             solver.at(q0, jacobians=True)
         return q
 
-    reach, meeting, head_on, used, joined = [], [], [], set(), None
-    for c in cons:
-        if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
-            continue
-        used.add(arm)
-        target = solver.kinematics().value(c.target)
-        reach.append((arm, c.site, target))
-        if (f := _head_on(solver, arm, c, cons)) is not None:
-            head_on.append((arm, c.site, target, f))
-        other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
-        if other is not None and other is not arm and meet is not None and not meeting:
-            # each hand a little to its own side, so that they start apart and close in
-            centre = d.site_xpos[solver.site_id(meet)].copy()
-            gap = np.array([0.0, MEET_GAP, 0.0])
-            meeting = [
-                (arm, c.site, centre + arm.out * gap),
-                (other, c.target.site, centre + other.out * gap),
-            ]
-            joined = (arm, other, c, centre)
+    reach, meeting, head_on, joined = _goals(solver, cons, arm_of, meet)
     aimed = {h[0] for h in head_on}  # the arms that bring a fingertip in head-on
     if head_on:
         head_on += [g for g in reach if g[0] not in aimed]

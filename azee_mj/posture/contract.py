@@ -14,6 +14,8 @@ Units: metres, radians.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from azee_mj.constraints import COLLISION_TOL
@@ -82,8 +84,9 @@ NATURAL_ITER = 30
 NATURAL_STEP = 0.2
 
 
+@functools.cache
 def tunables() -> np.ndarray:
-    """The one :data:`TUNABLES` record a core is made with."""
+    """The one :data:`TUNABLES` record a core is made with (made once; read-only)."""
     out = np.zeros(1, TUNABLES)
     out[0] = (
         MU0,
@@ -97,6 +100,7 @@ def tunables() -> np.ndarray:
         NATURAL_ITER,
         0,
     )
+    out.flags.writeable = False
     return out
 
 

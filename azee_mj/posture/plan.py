@@ -14,6 +14,7 @@ Units: metres, radians.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import TYPE_CHECKING
 
@@ -164,12 +165,19 @@ class BlockCompiler:
         return [_block(GENERIC, k)]
 
 
-def _records(dtype: np.dtype, rows: list) -> np.ndarray:
-    out = np.zeros(len(rows), dtype)
-    for i, row in enumerate(rows):
-        for name, value in row.items():
-            out[i][name] = value
-    return out
+@functools.cache
+def _zero_row(dtype: np.dtype) -> dict:
+    """Each field of ``dtype`` at zero (a tuple for an array field)."""
+    return {
+        n: (0.0,) * dtype.fields[n][0].shape[0] if dtype.fields[n][0].shape else 0
+        for n in dtype.names
+    }
+
+
+def _records(dtype: np.dtype, rows: list[dict]) -> np.ndarray:
+    """``rows`` (field -> value; missing fields zero) as records of ``dtype``."""
+    zero = _zero_row(dtype)
+    return np.array([tuple({**zero, **row}.values()) for row in rows], dtype)
 
 
 class Plan:

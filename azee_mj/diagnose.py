@@ -12,7 +12,8 @@ per constraint that misses, tried in this order:
    (or, when it drives none into another, the two closest at the result);
 4. **stopped by a joint limit**: a free joint sits at a limit and moving it past the limit
    would reduce the residual; the joint that would help most is named;
-5. otherwise a local minimum of the solver.
+5. otherwise a local minimum of the solver, with why its run stopped
+   (:attr:`~azee_mj.ik.IKResult.stop_message`).
 
 Units: metres, radians.
 """
@@ -68,19 +69,18 @@ def diagnose(
             or _collision(solver, problem, c, result.qpos)
             or _limit(solver, problem, c, result.qpos)
         )
-        out.append(
-            d
-            or Diagnosis(
-                c.label,
-                "minimum",
-                "a local minimum of the solver (no limit, reach or collision explains it)",
-            )
-        )
+        out.append(d or Diagnosis(c.label, "minimum", minimum_detail(result)))
     return tuple(out)
 
 
 def _name(m: mujoco.MjModel, obj, i: int) -> str:
     return mujoco.mj_id2name(m, obj, int(i)) or str(i)
+
+
+def minimum_detail(result: ik.IKResult) -> str:
+    """The words of a local minimum, with why the solver stopped when it says."""
+    text = "a local minimum of the solver (no limit, reach or collision explains it)"
+    return text if result.stop is None else f"{text}; the solver stopped: {result.stop_message}"
 
 
 def _reach(solver, c, q, limb_root) -> Diagnosis | None:

@@ -137,15 +137,25 @@ typedef struct {
   double* hist; /* (max iterations,) cost after each iteration */
 } RunOut;
 
+/* Small vector helpers, inline in every file that uses them. */
+static inline void cross3(const double* a, const double* b, double* out) {
+  out[0] = a[1] * b[2] - a[2] * b[1];
+  out[1] = a[2] * b[0] - a[0] * b[2];
+  out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static inline double dist2(const double* a, const double* b) {
+  double x = a[0] - b[0], y = a[1] - b[1], z = a[2] - b[2];
+  return x * x + y * y + z * z;
+}
+
 /* _ikcore_rows.c */
-void cross3(const double* a, const double* b, double* out);
 int grow(Core* s, int need);
 int raw_rows(Core* s);
 int evaluate(Core* s, const double* q, int collide, int b);
 double max_norm(const Core* s, int b);
 
 /* _ikcore_collision.c */
-double dist2(const double* a, const double* b);
 int penetrations(const mjModel* m, mjData* d, int g1, int g2, mjPreContact* pc);
 int collision_rows(Core* s, int b, int* rows, double* depth);
 double deepest(const Core* s, const int32_t* pairs, int n);

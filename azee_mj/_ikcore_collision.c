@@ -2,11 +2,6 @@
    narrowphase on the geom pairs that can move relative to each other. See _ikcore.h. */
 #include "_ikcore.h"
 
-double dist2(const double* a, const double* b) {
-  double x = a[0] - b[0], y = a[1] - b[1], z = a[2] - b[2];
-  return x * x + y * y + z * z;
-}
-
 /* The penetrating contacts of geom pair (g1, g2) (in the type order of its function) on the
    posture in data, as MuJoCo's narrowphase finds them after mj_collision's bounding-sphere
    test, without the margin: their count, written to pc (mjMAXCONPAIR). */

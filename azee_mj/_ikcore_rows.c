@@ -18,12 +18,6 @@ int grow(Core* s, int need) {
   return 0;
 }
 
-void cross3(const double* a, const double* b, double* out) {
-  out[0] = a[1] * b[2] - a[2] * b[1];
-  out[1] = a[2] * b[0] - a[0] * b[2];
-  out[2] = a[0] * b[1] - a[1] * b[0];
-}
-
 /* World axis R_body local and its Jacobian da/dq = -[a]x J_rot (3, nv) into ja. */
 static void body_axis(Core* s, int bid, const double* local, double* a, double* ja) {
   const mjModel* m = s->m;

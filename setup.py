@@ -17,7 +17,8 @@ setup(
     ext_modules=[
         Extension(
             "azee_mj._ikcore",
-            sources=["azee_mj/_ikcore.c"],
+            sources=sorted(glob.glob("azee_mj/_ikcore*.c")),
+            depends=["azee_mj/_ikcore.h"],
             include_dirs=[os.path.join(MJ, "include")],
             library_dirs=[MJ],
             libraries=[":" + os.path.basename(LIBS[0])],

@@ -9,6 +9,15 @@ per contact deeper than its body pair may go (``dist - floor``, Jacobian
 ``n . (J2 - J1)`` at the contact point, from ``mj_collision``); the solver's compiled core
 (``azee_mj/_ikcore.c``) computes them.
 
+Where each kind's rows are defined: ``rows`` here is the definition of every kind. The
+compiled core writes the same rows in C for the common forms (a placement at a linear
+combination of fixed points, sites and body origins; an orientation toward a fixed vector,
+a body axis or such a combination; a look; a joint target), held equal to ``rows`` by a
+test; for any other form it calls ``rows`` itself. The solver's report reads the core's rows
+back through :func:`residual_from_rows` (one definition per kind); ``residual`` gives the
+same error from the posture directly (used for the general forms and by callers without a
+solver).
+
 Orientations and gaze are rows of our own (for a world axis ``a = R u``: ``a - v`` along,
 ``a . v`` perpendicular, ``da/dq = -[a]x J_rot``).
 
@@ -154,6 +163,22 @@ class JointTarget:
     def residual(self, k: Kinematics) -> float:
         j = k.names.joint(self.joint)
         return abs(float(k.d.qpos[k.m.jnt_qposadr[j]]) - self.value)
+
+
+def residual_from_rows(c: Constraint, r: np.ndarray) -> float:
+    """Constraint ``c``'s residual in its unit ([m] or [rad]) from its raw (unscaled) rows
+    ``r`` as the solver's compiled core writes them (the report reads these, so the error
+    reported is the one the solver saw): a placement's or joint target's distance; an
+    orientation's angle from ``|a - v|`` (along) or ``a . v`` (perpendicular); a look's
+    largest angle over its eyes."""
+    if isinstance(c, Look):  # each eye's rows are a - v: the angle from |a - v|
+        eyes = np.sqrt((r.reshape(-1, 3) ** 2).sum(axis=1))
+        return float(2.0 * np.arcsin(np.minimum(1.0, eyes / 2.0)).max())
+    if isinstance(c, Orient):
+        if c.rel is Rel.PERP:
+            return float(np.arcsin(min(1.0, abs(r[0]))))
+        return float(2.0 * np.arcsin(min(1.0, np.sqrt(r @ r) / 2.0)))
+    return float(np.sqrt(r @ r))
 
 
 def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> float:

@@ -12,7 +12,8 @@ per constraint that misses, tried in this order:
    (or, when it drives none into another, the two closest at the result);
 4. **stopped by a joint limit**: a free joint sits at a limit and moving it past the limit
    would reduce the residual; the joint that would help most is named;
-5. otherwise a local minimum of the solver.
+5. otherwise a local minimum of the solver, with why its run stopped
+   (:attr:`~azee_mj.ik.IKResult.stop_message`).
 
 Units: metres, radians.
 """
@@ -68,14 +69,7 @@ def diagnose(
             or _collision(solver, problem, c, result.qpos)
             or _limit(solver, problem, c, result.qpos)
         )
-        out.append(
-            d
-            or Diagnosis(
-                c.label,
-                "minimum",
-                "a local minimum of the solver (no limit, reach or collision explains it)",
-            )
-        )
+        out.append(d or Diagnosis(c.label, "minimum", minimum_detail(result)))
     return tuple(out)
 
 
@@ -83,12 +77,17 @@ def _name(m: mujoco.MjModel, obj, i: int) -> str:
     return mujoco.mj_id2name(m, obj, int(i)) or str(i)
 
 
+def minimum_detail(result: ik.IKResult) -> str:
+    """The words of a local minimum, with why the solver stopped when it says."""
+    text = "a local minimum of the solver (no limit, reach or collision explains it)"
+    return text if result.stop is None else f"{text}; the solver stopped: {result.stop_message}"
+
+
 def _reach(solver, c, q, limb_root) -> Diagnosis | None:
     if not isinstance(c, cn.Place) or limb_root is None or (root := limb_root(c.site)) is None:
         return None
     m, d = solver.model, solver.data
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
+    solver.at(q)
     sid = solver.site_id(c.site)
     chain, b = [], int(m.site_bodyid[sid])
     while b > 0 and b != root:
@@ -173,8 +172,7 @@ def _deepest(solver, q) -> tuple[float, str, str] | None:
     """(depth [m], negative if apart; the two bodies) of the deepest contact MuJoCo finds
     in posture ``q``, or None without any."""
     m, d = solver.model, solver.data
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
+    solver.at(q)
     mujoco.mj_collision(m, d)
     if not d.ncon:
         return None
@@ -184,11 +182,9 @@ def _deepest(solver, q) -> tuple[float, str, str] | None:
 
 
 def _limit(solver, problem, c, q) -> Diagnosis | None:
-    m, d = solver.model, solver.data
+    m = solver.model
     plan = solver.plan(problem)
-    d.qpos[:] = q
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    solver.at(q, jacobians=True)
     r, J = plan.rows()
     k = problem.constraints.index(c)
     blk = plan.items[k]

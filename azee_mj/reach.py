@@ -185,6 +185,34 @@ def _rot_y(t: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
+def _goals(solver: ik.Solver, cons, arm_of, meet: str | None):
+    """The reach goals of :func:`arm_seeds` on the posture in the solver's data: (reach:
+    each free arm's first placement, meeting: both hands at ``meet`` when a placement joins
+    them, head_on: the arms bringing a fingertip in face to face, joined: (arm, other arm,
+    the joining placement, the meeting centre) or None)."""
+    d = solver.data
+    reach, meeting, head_on, used, joined = [], [], [], set(), None
+    for c in cons:
+        if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
+            continue
+        used.add(arm)
+        target = solver.kinematics().value(c.target)
+        reach.append((arm, c.site, target))
+        if (f := _head_on(solver, arm, c, cons)) is not None:
+            head_on.append((arm, c.site, target, f))
+        other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
+        if other is not None and other is not arm and meet is not None and not meeting:
+            # each hand a little to its own side, so that they start apart and close in
+            centre = d.site_xpos[solver.site_id(meet)].copy()
+            gap = np.array([0.0, MEET_GAP, 0.0])
+            meeting = [
+                (arm, c.site, centre + arm.out * gap),
+                (other, c.target.site, centre + other.out * gap),
+            ]
+            joined = (arm, other, c, centre)
+    return reach, meeting, head_on, joined
+
+
 def arm_seeds(
     solver: ik.Solver,
     arms,
@@ -209,9 +237,7 @@ def arm_seeds(
     site on an arm but not on its hand, or None. Empty when no placement moves a free arm.
     """
     m, d = solver.model, solver.data
-    d.qpos[:] = q0
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    solver.at(q0, jacobians=True)
     free = set(free)
     arms = [a for a in arms if {a.flex, a.abd, a.rot, a.elbow} <= free]
 
@@ -231,30 +257,10 @@ def arm_seeds(
         for arm, site, target in aims:
             q = _aim_hand(solver, q, arm.wrist, site, target)
         if aims:  # leave ``data`` on ``q0`` for the next group
-            d.qpos[:] = q0
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
+            solver.at(q0, jacobians=True)
         return q
 
-    reach, meeting, head_on, used, joined = [], [], [], set(), None
-    for c in cons:
-        if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
-            continue
-        used.add(arm)
-        target = solver.kinematics().value(c.target)
-        reach.append((arm, c.site, target))
-        if (f := _head_on(solver, arm, c, cons)) is not None:
-            head_on.append((arm, c.site, target, f))
-        other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
-        if other is not None and other is not arm and meet is not None and not meeting:
-            # each hand a little to its own side, so that they start apart and close in
-            centre = d.site_xpos[solver.site_id(meet)].copy()
-            gap = np.array([0.0, MEET_GAP, 0.0])
-            meeting = [
-                (arm, c.site, centre + arm.out * gap),
-                (other, c.target.site, centre + other.out * gap),
-            ]
-            joined = (arm, other, c, centre)
+    reach, meeting, head_on, joined = _goals(solver, cons, arm_of, meet)
     aimed = {h[0] for h in head_on}  # the arms that bring a fingertip in head-on
     if head_on:
         head_on += [g for g in reach if g[0] not in aimed]
@@ -308,9 +314,7 @@ def _then_reach(
     ``q0``."""
     m, d = solver.model, solver.data
     out = []
-    d.qpos[:] = q1
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    solver.at(q1, jacobians=True)
     target = d.site_xpos[solver.site_id(c.target.site)].copy()
     head_on, rule = _head_on(solver, arm, c, cons), _facing_of(solver, c, cons)
     for goal in [(target,)] + ([(target, head_on)] if head_on else []):
@@ -321,9 +325,7 @@ def _then_reach(
         if sol and rule is not None:
             q = _aim_hand(solver, q, arm.wrist, c.site, target, rule)
         out.append(q)
-    d.qpos[:] = q0
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    solver.at(q0, jacobians=True)
     return out
 
 
@@ -353,8 +355,7 @@ def _aim_hand(
 
     def miss(x):
         q[adr] = np.clip(x, lo, hi)
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
+        solver.at(q)
         cost = float(np.sum((d.site_xpos[sid] - target) ** 2))
         if facing is not None:
             c = (d.xmat[ba].reshape(3, 3) @ la) @ (d.xmat[bb].reshape(3, 3) @ lb)
@@ -454,9 +455,7 @@ def swivel_seeds(
     surface it meets (:func:`_head_on_solves`). ``hand_of(site)`` is the arm whose hand
     carries a model site, or None."""
     m, d = solver.model, solver.data
-    d.qpos[:] = q0
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    solver.at(q0, jacobians=True)
     free = set(solver.free_dofs(problem).tolist())
     goals: dict[Arm, list[tuple[np.ndarray, np.ndarray]]] = {}  # (hand point, target)
     for arm in arms:
@@ -501,14 +500,13 @@ def _turned_upper_arms(solver: ik.Solver, goals, problem: ik.IKProblem, q0: np.n
     """Starts (nq,), made lazily: ``q0`` with each arm's shoulder joints turned so that its
     upper arm meets the orientation rules on it (a grid over the joint ranges, then
     Nelder-Mead): an upper arm raised past the side has its own branch of the shoulder."""
-    m, d = solver.model, solver.data
+    m = solver.model
     k = solver.kinematics()
     for arm in goals:
         rules = [c for c in problem.constraints if isinstance(c, cn.Orient) and c.body == arm.upper]
         if not rules:
             continue
-        d.qpos[:] = q0
-        mujoco.mj_kinematics(m, d)
+        solver.at(q0)
         vecs = [k.value(c.vector) for c in rules]
         vecs = [v / max(float(np.linalg.norm(v)), 1e-9) for v in vecs]
         jid = [solver.joint_id(j) for j in (arm.flex, arm.abd, arm.rot)]
@@ -555,8 +553,7 @@ def _head_on_solves(solver: ik.Solver, goals, hand_of, problem: ik.IKProblem, q0
         local = np.asarray(m.site_pos[sid], float)
         if m.site_bodyid[sid] == solver.body_id(arm.hand) or np.linalg.norm(local) < 1e-6:
             continue  # not the end of a finger segment
-        d.qpos[:] = q0
-        mujoco.mj_kinematics(m, d)
+        solver.at(q0)
         tbody = int(m.site_bodyid[solver.site_id(c.target.site)])
         try:
             normal = surface.skin_distance(m, d, tbody, k.value(c.target))[1]
@@ -588,12 +585,11 @@ def _orient_miss(solver: ik.Solver, q: np.ndarray, adr, lo, hi, body: int, rules
     """The squared miss of the orientation ``rules`` (with their unit vectors ``vecs``) on
     ``body`` as a function of the joints at ``adr`` of ``q`` (set in place, within
     ``lo``..``hi``)."""
-    m, d = solver.model, solver.data
+    d = solver.data
 
     def miss(x):
         q[adr] = np.clip(x, lo, hi)
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
+        solver.at(q)
         R = d.xmat[body].reshape(3, 3)
         cost = 0.0
         for c, v in zip(rules, vecs):

@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from azee_mj import constraints as cn
-from azee_mj import ik, native, natural
+from azee_mj import ik, natural
 from azee_mj import kinematics as kin
 from azee_mj.check import check_poses
 from azee_mj.schedule import make_solver
@@ -258,12 +258,6 @@ def test_pose_check_finds_a_penetration_made_on_purpose(solver):
     assert any(
         "arm_R" in p.geom1 + p.geom2 or "f_arm_R" in p.geom1 + p.geom2 for p in report.penetrations
     )
-
-
-def test_compiled_constants_are_the_solvers():
-    core = native.core()
-    assert (core.MU0, core.MAX_STEP, core.COLLISION_TOL) == (ik.MU0, ik.MAX_STEP, cn.COLLISION_TOL)
-    assert (core.MET_GAIN, core.FAR_COST, core.FAR_GAIN) == (ik.MET_GAIN, ik.FAR_COST, ik.FAR_GAIN)
 
 
 def _penetrating_posture(solver, depth=0.01):

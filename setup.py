@@ -18,7 +18,7 @@ setup(
         Extension(
             "azee_mj._ikcore",
             sources=sorted(glob.glob("azee_mj/_ikcore*.c")),
-            depends=["azee_mj/_ikcore.h"],
+            depends=["azee_mj/_ikcore_shared.h"],
             include_dirs=[os.path.join(MJ, "include")],
             library_dirs=[MJ],
             libraries=[":" + os.path.basename(LIBS[0])],

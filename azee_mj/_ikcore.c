@@ -6,14 +6,14 @@
    contact deeper than its pair's floor), runs one Levenberg-Marquardt run whose steps are
    box-constrained QPs (mju_boxQP) and the polish toward the most natural posture; each run
    says why it stopped. Constraints of a form the core does not know are written by a Python
-   callback. The records Python passes (Block, Term, Tunables) are laid out in _ikcore.h;
+   callback. The records Python passes (Block, Term, Tunables) are laid out in _ikcore_shared.h;
    `layout()` reports their sizes and offsets.
 
    Only the buffer protocol is used (no numpy headers): arrays come in as contiguous buffers
    of the expected item size, results go out as bytes. Units: metres, radians. */
 #include <stddef.h>
 
-#include "_ikcore.h"
+#include "_ikcore_shared.h"
 
 static const char* STOP_NAMES[STOP_COUNT] = {
     "DONE", "MET_SLOW", "STALL", "GUIDE_STALL", "DAMPING", "NO_STEP", "MAX_ITER",

@@ -1,6 +1,6 @@
 /* Collision rows: one per contact deeper than its body pair's floor, from MuJoCo's
-   narrowphase on the geom pairs that can move relative to each other. See _ikcore.h. */
-#include "_ikcore.h"
+   narrowphase on the geom pairs that can move relative to each other. See _ikcore_shared.h. */
+#include "_ikcore_shared.h"
 
 /* The penetrating contacts of geom pair (g1, g2) (in the type order of its function) on the
    posture in data, as MuJoCo's narrowphase finds them after mj_collision's bounding-sphere

@@ -1,7 +1,7 @@
 /* The Levenberg-Marquardt run on the constraint and collision rows, and the polish toward
    the most natural posture that keeps them (see azee_mj/ik.py, Solver._lm and _polish).
-   Each run reports why it stopped (Stop). See _ikcore.h. */
-#include "_ikcore.h"
+   Each run reports why it stopped (Stop). See _ikcore_shared.h. */
+#include "_ikcore_shared.h"
 
 /* H (nc x nc, symmetric) = A^T A and, with r, g = A^T r, for A the columns cols (nc of
    them; NULL: all n) of the rows x n matrix J; row by row, skipping exact zeros (a sparse

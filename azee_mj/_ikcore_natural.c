@@ -1,6 +1,6 @@
 /* Naturalness rows: gravity torques (effort), comfort, and the preferences' rows (see
-   azee_mj/natural.py). See _ikcore.h. */
-#include "_ikcore.h"
+   azee_mj/natural.py). See _ikcore_shared.h. */
+#include "_ikcore_shared.h"
 
 /* tau (ne,) gravity torque each dof in edof holds, and, if J, its derivative (ne, ncols)
    with respect to qpos[cols]; anc[k * nv + i]: dof k is dof i or one of its ancestors. */

@@ -1,22 +1,6 @@
 /* Constraint rows: the blocks' raw rows from MuJoCo's Jacobians, and their scaled
-   evaluation over the free dofs (with the collision rows). See _ikcore.h. */
-#include "_ikcore.h"
-
-/* Room for `need` rows in both buffer sets. Returns 0, or -1 out of memory (no error set). */
-int grow(Core* s, int need) {
-  if (need <= s->cap) return 0;
-  int cap = need + 64;
-  for (int b = 0; b < 2; b++) {
-    double* r = realloc(s->r[b], sizeof(double) * cap);
-    if (!r) return -1;
-    s->r[b] = r;
-    double* J = realloc(s->J[b], sizeof(double) * cap * (s->nfree ? s->nfree : 1));
-    if (!J) return -1;
-    s->J[b] = J;
-  }
-  s->cap = cap;
-  return 0;
-}
+   evaluation over the free dofs (with the collision rows). See _ikcore_shared.h. */
+#include "_ikcore_shared.h"
 
 /* World axis R_body local and its Jacobian da/dq = -[a]x J_rot (3, nv) into ja. */
 static void body_axis(Core* s, int bid, const double* local, double* a, double* ja) {

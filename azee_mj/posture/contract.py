@@ -1,4 +1,4 @@
-"""The contract between Python and the compiled solver core (``azee_mj/_ikcore.h``).
+"""The contract between Python and the compiled solver core (``azee_mj/_ikcore_shared.h``).
 
 Three records cross the boundary, each a numpy structured dtype here mirrored by a C struct
 there (the core's ``layout()`` reports the struct sizes and field offsets, and a test holds

@@ -149,8 +149,23 @@ static inline double dist2(const double* a, const double* b) {
   return x * x + y * y + z * z;
 }
 
+/* Room for `need` rows in both buffer sets. Returns 0, or -1 out of memory (no error set). */
+static inline int grow(Core* s, int need) {
+  if (need <= s->cap) return 0;
+  int cap = need + 64;
+  for (int b = 0; b < 2; b++) {
+    double* r = realloc(s->r[b], sizeof(double) * cap);
+    if (!r) return -1;
+    s->r[b] = r;
+    double* J = realloc(s->J[b], sizeof(double) * cap * (s->nfree ? s->nfree : 1));
+    if (!J) return -1;
+    s->J[b] = J;
+  }
+  s->cap = cap;
+  return 0;
+}
+
 /* _ikcore_rows.c */
-int grow(Core* s, int need);
 int raw_rows(Core* s);
 int evaluate(Core* s, const double* q, int collide, int b);
 double max_norm(const Core* s, int b);

@@ -27,7 +27,7 @@ from azee_mj.markers import Clip, Marker, Targets, add_markers, markers
 from azee_mj.model import SCENE_PATH
 
 #: The fixed cameras of ``scene.xml``, in the order ``C`` cycles them in the viewer.
-CAMERAS = ("front", "side", "three-quarter", "top")
+CAMERAS = ("front", "side", "three-quarter", "top", "face")
 #: Backends tried, in order, when ``MUJOCO_GL`` is unset.
 GL_BACKENDS = ("egl", "osmesa")
 #: Default image size [px].

@@ -19,6 +19,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from azee_mj import arkit
+
 SIDES = ("L", "R")
 
 #: Digit letters used in site names, and the bone stem of each digit.
@@ -66,6 +68,28 @@ PHALANX_STEMS = ("KN", "KNi", "BACK", "INT")
 PHALANGES = (1, 2, 3)
 #: Signing-space loci (scores write ``^ssp``).
 LOCI = ("ssp", "Rssp", "Lssp")
+#: The face rig's joints (the ``face`` track: moved by morphs only, never by the solver for
+#: a placement).
+FACE_JOINTS = (
+    ("jaw_open", "jaw_fwd", "jaw_lat")
+    + tuple(
+        f"{stem}_{s}_{m}"
+        for stem, motions in (
+            ("lip_low", ("down", "out", "in", "tilt")),
+            ("lid", ("close",)),
+            ("lid_low", ("raise",)),
+            ("brow", ("raise", "knit")),
+            ("brow_out", ("raise",)),
+            ("cheek", ("puff", "raise")),
+            ("nose", ("sneer",)),
+            ("lip_up", ("raise", "out", "in", "tilt")),
+            ("mouth", ("up", "out", "fwd")),
+        )
+        for s in SIDES
+        for m in motions
+    )
+    + ("tongue_out",)
+)
 
 
 def azee_site_names() -> tuple[str, ...]:
@@ -124,19 +148,27 @@ class BoneMap:
 class Morph:
     """A named joint-space change: ``changes[joint]`` at weight 1 [rad or m].
 
-    ``sided`` morphs name joints with a ``{X}`` placeholder for the side (``L`` or ``R``);
-    applying one without a side applies it to both sides.
+    ``sided`` morphs name joints with a ``{X}`` placeholder for the side they act on (``L``
+    or ``R``) and ``{Y}`` for the other side, with the right side's values; applying one
+    without a side applies it to both sides (the changes summed). The joints of ``flipped``
+    (midline joints, or joints whose left twin is not mirrored) change the other way on the
+    left side.
     """
 
     changes: Mapping[str, float]
     sided: bool
+    flipped: frozenset[str] = frozenset()
 
     def joint_changes(self, side: str | None) -> dict[str, float]:
         """The change per model joint for ``side`` (``"L"``, ``"R"`` or None for both)."""
         if not self.sided:
             return dict(self.changes)
-        sides = SIDES if side is None else (side,)
-        return {j.format(X=s): v for s in sides for j, v in self.changes.items()}
+        out: dict[str, float] = {}
+        for s in SIDES if side is None else (side,):
+            for j, v in self.changes.items():
+                name = j.format(X=s, Y=other_side(s))
+                out[name] = out.get(name, 0.0) + (-v if s == "L" and j in self.flipped else v)
+        return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -193,7 +225,9 @@ class SignerMap:
             morphs=_frozen(
                 {
                     k: Morph(
-                        _frozen({_rename_templ(j, rj): v for j, v in m.changes.items()}), m.sided
+                        _frozen({_rename_templ(j, rj): v for j, v in m.changes.items()}),
+                        m.sided,
+                        frozenset(_rename_templ(j, rj) for j in m.flipped),
                     )
                     for k, m in self.morphs.items()
                 }
@@ -205,11 +239,14 @@ class SignerMap:
 
 
 def _rename_templ(joint: str, rename) -> str:
-    # Keep the {X} placeholder: rename the name as it reads on the right side, then restore.
-    if "{X}" not in joint:
-        return rename(joint)
-    marker = "\x00"
-    return rename(joint.replace("{X}", marker)).replace(marker, "{X}")
+    # Keep the {X} / {Y} placeholders: rename the name with markers in them, then restore.
+    marks = {"{X}": "\x00", "{Y}": "\x01"}
+    for k, v in marks.items():
+        joint = joint.replace(k, v)
+    joint = rename(joint)
+    for k, v in marks.items():
+        joint = joint.replace(v, k)
+    return joint
 
 
 def _frozen(d: dict) -> Mapping:
@@ -312,10 +349,7 @@ def _bundled_tracks() -> dict[str, tuple[str, ...]]:
         "spine": [f"{b}_{m}" for b in ("back_1", "back_2") for m in ("flex", "lat", "rot")],
         "head": [f"{b}_{m}" for b in ("neck", "head") for m in ("flex", "lat", "rot")],
         "eyes": [f"eye_{s}_{m}" for s in SIDES for m in ("yaw", "pitch")],
-        "face": ["jaw_open"]
-        + [f"lid_{s}_close" for s in SIDES]
-        + [f"brow_{s}_{m}" for s in SIDES for m in ("raise", "knit")]
-        + [f"mouth_{s}_up" for s in SIDES],
+        "face": list(FACE_JOINTS),
     }
     for s in SIDES:
         tracks[f"arm_{s}"] = [
@@ -418,9 +452,9 @@ def handshape_changes(name: str) -> dict[str, float]:
     return out
 
 
-def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
-    """Morph id -> (joint change at weight 1 [rad / m], sided)."""
-    m: dict[str, tuple[dict[str, float], bool]] = {}
+def _bundled_morphs() -> dict[str, tuple]:
+    """Morph id -> (joint change at weight 1 [rad / m], sided[, flipped joints])."""
+    m: dict[str, tuple] = {}
     for f in FINGERS:
         m[f"{f}_bend"] = ({f"{f}_{{X}}_1_flex": 1.45}, True)
         m[f"{f}_hook"] = ({f"{f}_{{X}}_2_flex": 1.5, f"{f}_{{X}}_3_flex": 1.2}, True)
@@ -477,13 +511,33 @@ def _bundled_morphs() -> dict[str, tuple[dict[str, float], bool]]:
     m["shoulder_raise"] = ({"clav_{X}_elev": 0.45}, True)
     m["shoulder_shrug"] = ({"clav_{X}_elev": 0.35, "clav_{X}_prot": 0.15}, True)
     m["spine_extended"] = ({"back_1_flex": -0.15, "back_2_flex": -0.15}, False)
-    m["blink"] = ({"lid_{X}_close": 1.0}, True)
-    m["eyes_wide"] = ({"lid_{X}_close": -0.35}, True)
-    m["brows_raise"] = ({"brow_{X}_raise": 0.008}, True)
-    m["brows_frown"] = ({"brow_{X}_raise": -0.004, "brow_{X}_knit": 0.005}, True)
-    m["jaw_open"] = ({"jaw_open": 0.3}, False)
-    m["smile"] = ({"mouth_{X}_up": 0.006}, True)
-    m["mouth_down"] = ({"mouth_{X}_up": -0.006}, True)
+    m.update(_face_morphs())
+    return m
+
+
+def _compose(weights: Mapping[str, float]) -> dict[str, float]:
+    """A weighted sum of ARKit shapes' right-side templates (``arkit.SIDED`` bases and
+    ``arkit.BOTH`` shapes)."""
+    out: dict[str, float] = {}
+    for name, w in weights.items():
+        for j, v in {**arkit.SIDED, **arkit.BOTH}[name].items():
+            out[j] = out.get(j, 0.0) + w * v
+    return {j: round(v, 6) for j, v in out.items()}
+
+
+def _face_morphs() -> dict[str, tuple]:
+    """The 52 ARKit shapes, their sided bases, and the catalogue's first face morphs as
+    compositions of them."""
+    m: dict[str, tuple] = {name: (ch, False) for name, ch in arkit.shape_changes().items()}
+    for base, ch in arkit.SIDED.items():
+        m[base] = (dict(ch), True, arkit.FLIPPED & set(ch))
+    m["blink"] = (_compose({"eyeBlink": 1.0}), True)
+    m["eyes_wide"] = (_compose({"eyeWide": 1.0}), True)
+    m["brows_raise"] = (_compose({"browInnerUp": 0.8, "browOuterUp": 0.8}), True)
+    m["brows_frown"] = (_compose({"browDown": 1.0}), True)
+    m["jaw_open"] = (arkit.both_changes(_compose({"jawOpen": 0.85})), False)
+    m["smile"] = (_compose({"mouthSmile": 1.0}), True)
+    m["mouth_down"] = (_compose({"mouthFrown": 1.0}), True)
     return m
 
 
@@ -573,7 +627,10 @@ def _bundled_normals(bones: Mapping[str, BoneMap]) -> dict[str, tuple[float, flo
 
 def _bundled_map() -> SignerMap:
     sites = {name: name for name in azee_site_names()}
-    morphs = {k: Morph(_frozen(ch), sided) for k, (ch, sided) in _bundled_morphs().items()}
+    morphs = {
+        k: Morph(_frozen(v[0]), v[1], frozenset(v[2]) if len(v) > 2 else frozenset())
+        for k, v in _bundled_morphs().items()
+    }
     bones = _bundled_bones()
     return SignerMap(
         sites=_frozen(sites),

@@ -187,6 +187,7 @@ class Body:
     children: list = dataclasses.field(default_factory=list)
     inertial: dict | None = None
     comment: str | None = None
+    cameras: list = dataclasses.field(default_factory=list)  # (name, world pos, target, fovy)
 
     def add(self, child: Body) -> Body:
         self.children.append(child)
@@ -418,20 +419,12 @@ def build_neck_head(b2: Body) -> Body:
         # the eyeball (under the lid): the eye bodies carry the visual eye, the head its
         # collision sphere (a sphere about the eye's centre does not change as it turns)
         b.geom(type="sphere", pos=EYE_R, size=[EYE_RAD], **shell())
-        # upper lip (static, collision too); the lower lip is on the jaw, corners on mouth_X
+        # the upper lip's skin for contacts (static); what shows moves with lip_up_X
         for ft in (
             [0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
             [0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240],
         ):
             b.geom(type="capsule", fromto=ft, size=[0.0032], **shell())
-            b.geom(type="capsule", fromto=ft, size=[0.0032], **vis("lips"))
-        # lower eyelid rim (static)
-        b.geom(
-            type="capsule",
-            fromto=[0.074, -0.024, 0.6815, 0.074, -0.040, 0.6835],
-            size=[0.0022],
-            **vis("skin"),
-        )
         for y, z, stem in ((-0.033, 0.714, "EB"), (-0.017, 0.712, "EBi"), (-0.050, 0.712, "EBe")):
             b.site(f"{stem}_{{X}}", front(CRANIUM, y, z))
         b.site("EYE_{X}", EYE_R + [EYE_RAD, 0, 0])
@@ -446,27 +439,57 @@ def build_neck_head(b2: Body) -> Body:
 
     both_sides(lateral, head)
 
-    # jaw
-    jaw = head.add(Body("jaw", JAW, comment="lower jaw; hinge at the temporo-mandibular joints"))
-    jaw.joints = [hinge("jaw_open", "face_hinge", (0, 1, 0), -2, 30)]
-    jaw.geom(**ellipsoid(CHIN, col()))
-    jaw.geom(**ellipsoid(CHIN, vis("skin")))
-    # the jaw's sides and underside (visual): fills the lower face between chin and ears
-    jaw.geom(type="ellipsoid", pos=[0.026, 0, 0.619], size=[0.050, 0.060, 0.028], **vis("skin"))
+    build_face(head)
+    return neck
 
-    def jaw_lat(b):  # lower lip (collision too)
-        for ft in (
-            [0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
-            [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135],
-        ):
-            b.geom(type="capsule", fromto=ft, size=[0.0036], **shell())
-            b.geom(type="capsule", fromto=ft, size=[0.0036], **vis("lips"))
 
-    both_sides(jaw_lat, jaw)
-    jaw.site("CH", surface(CHIN, unit([1.0, 0, -0.9])))
-    jaw.site("TO", [0.082, 0.0, 0.618])
+# ---------------------------------------------------------------------------------------
+# The face rig: small bodies under the head and the jaw, moved only by morphs
+# ---------------------------------------------------------------------------------------
 
-    # eyes, upper lids, brows, mouth corners (defined on the right, mirrored)
+#: Eyelids: skin spheres of radius LID_RAD whose centres sit LID_OFF from the eye's centre;
+#: each covers the eyeball on its side of a margin LID_EDGE from its centre direction.
+LID_OFF, LID_RAD = 0.0015, 0.01215
+LID_EDGE = np.degrees(np.arccos((0.012**2 + LID_OFF**2 - LID_RAD**2) / (2 * 0.012 * LID_OFF)))
+#: The open lids' margins [deg above the eye's axis]: the upper lid covers the top of the
+#: iris (its rim is 27.8 deg from the axis), the lower lid is at its lower rim.
+UPPER_MARGIN, LOWER_MARGIN = 26.0, -30.0
+#: Lips at rest (world, right half): upper and lower lip capsules, the corner.
+LIP_UP = (
+    [0.0740, -0.020, 0.6225, 0.0850, -0.003, 0.6250],
+    [0.0850, -0.003, 0.6250, 0.0850, 0.0, 0.6240],
+)
+LIP_LOW = (
+    [0.0740, -0.020, 0.6160, 0.0840, -0.003, 0.6135],
+    [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135],
+)
+CORNER_R = np.array([0.0745, -0.0235, 0.6190])
+#: Every face articulator's inertia: light enough not to load the neck (0.2 g).
+FACE_INERTIA = {"mass": 0.0002, "diaginertia": [2e-9, 2e-9, 2e-9]}
+#: The cheek: a skin sphere under the face's surface by the mouth, puffed out along CHEEK_OUT.
+CHEEK_AT = front(FACE, -0.045, 0.628)
+CHEEK_OUT = unit([0.45, -0.85, -0.2])
+
+
+def _dir(deg: float) -> np.ndarray:
+    """The unit vector ``deg`` degrees from +x toward +z (in the eye's sagittal plane)."""
+    a = np.radians(deg)
+    return np.array([np.cos(a), 0.0, np.sin(a)])
+
+
+def rotate(v, axis, deg: float) -> np.ndarray:
+    """``v`` turned ``deg`` degrees about the unit ``axis`` (Rodrigues)."""
+    a, k = np.radians(deg), unit(axis)
+    return v * np.cos(a) + np.cross(k, v) * np.sin(a) + k * np.dot(k, v) * (1 - np.cos(a))
+
+
+def face_body(name, pos, joints, comment) -> Body:
+    b = Body(name, np.asarray(pos, float), joints=joints, comment=comment)
+    b.inertial = FACE_INERTIA
+    return b
+
+
+def build_eye() -> Body:
     eye = Body("eye_{X}", EYE_R, comment="eyeball; origin at its centre of rotation")
     # both eyes: + yaw looks left, + pitch looks down (conjugate gaze, axes not mirrored)
     eye.joints = [
@@ -477,57 +500,203 @@ def build_neck_head(b2: Body) -> Body:
         j.mirror = False
     eye.inertial = {"mass": 0.0075, "diaginertia": [4.3e-7, 4.3e-7, 4.3e-7]}
     eye.geom(type="sphere", pos=EYE_R, size=[0.012], **vis("sclera"))
-    # iris and pupil: thin discs just proud of the eyeball's front pole
+    # iris and pupil: flat ellipsoids that follow the eyeball's curve (0.15 mm proud at most)
     eye.geom(
-        type="cylinder",
-        fromto=np.r_[EYE_R + [0.0095, 0, 0], EYE_R + [0.0121, 0, 0]],
-        size=[0.0056],
-        **vis("iris"),
+        type="ellipsoid", pos=EYE_R + [0.0100, 0, 0], size=[0.0021, 0.0056, 0.0056], **vis("iris")
     )
     eye.geom(
-        type="cylinder",
-        fromto=np.r_[EYE_R + [0.0100, 0, 0], EYE_R + [0.0123, 0, 0]],
-        size=[0.0025],
-        **vis("pupil"),
+        type="ellipsoid", pos=EYE_R + [0.0106, 0, 0], size=[0.0016, 0.0025, 0.0025], **vis("pupil")
     )
+    return eye
 
-    lid = Body("lid_{X}", EYE_R, comment="upper eyelid; hinge through the eye's centre")
-    lid.joints = [hinge("lid_{X}_close", "face_hinge", (0, 1, 0), -22.9, 63.0)]
-    lid.inertial = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
-    beta = np.radians(100.0)  # rest (open) angle of the lid's centre, from +x toward +z
-    lid.geom(
+
+def build_lids() -> list[Body]:
+    """Upper and lower eyelids: hinges through the eye's centre (+ closes each)."""
+    up = face_body(
+        "lid_{X}",
+        EYE_R,
+        [hinge("lid_{X}_close", "face_hinge", (0, 1, 0), -25, 75)],
+        "upper eyelid; hinge through the eye's centre",
+    )
+    up.geom(
         type="sphere",
-        pos=EYE_R + 0.009 * np.array([np.cos(beta), 0, np.sin(beta)]),
-        size=[0.0125],
+        pos=EYE_R + LID_OFF * _dir(UPPER_MARGIN + LID_EDGE),
+        size=[LID_RAD],
         **vis("skin"),
     )
+    # the lash line along the upper lid's margin, 0.4 mm out of the eyeball
+    axis = _dir(UPPER_MARGIN + LID_EDGE)
+    edge = [0.0124 * rotate(_dir(UPPER_MARGIN), axis, a) for a in (-55.0, -20.0, 20.0, 55.0)]
+    for a, b in zip(edge, edge[1:]):
+        up.geom(type="capsule", fromto=np.r_[EYE_R + a, EYE_R + b], size=[0.0006], **vis("brow"))
+    low = face_body(
+        "lid_low_{X}",
+        EYE_R,
+        [hinge("lid_low_{X}_raise", "face_hinge", (0, -1, 0), -10, 40)],
+        "lower eyelid; hinge through the eye's centre",
+    )
+    low.geom(
+        type="sphere",
+        pos=EYE_R + LID_OFF * _dir(LOWER_MARGIN - LID_EDGE),
+        size=[LID_RAD],
+        **vis("skin"),
+    )
+    return [up, low]
 
-    brow_c = front(CRANIUM, -0.033, 0.714)
-    brow = Body("brow_{X}", brow_c, comment="eyebrow: raise (+z) and knit (toward the midline)")
-    brow.joints = [
-        slide("brow_{X}_raise", (0, 0, 1), -0.006, 0.012),
-        slide("brow_{X}_knit", (0, 1, 0), 0.0, 0.008),
-    ]
-    brow.inertial = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
+
+def build_brows() -> list[Body]:
+    """Each brow in two parts hinged where they meet: the inner part raises, knits and
+    tilts (its inner end up), the outer part raises and tilts (its outer end up)."""
     pts = [
         front(CRANIUM, y, z) + [0.0025, 0, 0]
         for y, z in ((-0.014, 0.7105), (-0.033, 0.7145), (-0.052, 0.7115))
     ]
-    brow.geom(type="capsule", fromto=np.r_[pts[0], pts[1]], size=[0.0032], **vis("brow"))
-    brow.geom(type="capsule", fromto=np.r_[pts[1], pts[2]], size=[0.0028], **vis("brow"))
+    inner = face_body(
+        "brow_{X}",
+        pts[1],
+        [
+            slide("brow_{X}_raise", (0, 0, 1), -0.006, 0.012),
+            slide("brow_{X}_knit", (0, 1, 0), 0.0, 0.008),
+            hinge("brow_{X}_tilt", "face_hinge", (1, 0, 0), -25, 35),
+        ],
+        "inner eyebrow: raise (+z), knit (toward the midline), tilt (inner end up)",
+    )
+    # (3 mm past the joint: the two parts still overlap when the inner one knits)
+    past = pts[1] + 0.003 * unit(pts[1] - pts[0])
+    inner.geom(type="capsule", fromto=np.r_[pts[0], past], size=[0.0032], **vis("brow"))
+    outer = face_body(
+        "brow_out_{X}",
+        pts[1],
+        [
+            slide("brow_out_{X}_raise", (0, 0, 1), -0.006, 0.012),
+            hinge("brow_out_{X}_tilt", "face_hinge", (-1, 0, 0), -25, 35),
+        ],
+        "outer eyebrow: raise (+z), tilt (outer end up)",
+    )
+    outer.geom(type="capsule", fromto=np.r_[pts[1], pts[2]], size=[0.0028], **vis("brow"))
+    return [inner, outer]
 
-    mouth = Body("mouth_{X}", np.array([0.0745, -0.0235, 0.6190]), comment="mouth corner")
-    mouth.joints = [slide("mouth_{X}_up", (0, 0, 1), -0.008, 0.008)]
-    mouth.inertial = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
-    mouth.geom(type="sphere", pos=mouth.pos, size=[0.0042], **vis("lips"))
 
-    for tmpl in (eye, lid, brow, mouth):
+def build_cheek_nose() -> list[Body]:
+    cheek = face_body(
+        "cheek_{X}",
+        CHEEK_AT,
+        [
+            slide("cheek_{X}_puff", CHEEK_OUT, 0.0, 0.010),
+            slide("cheek_{X}_raise", (0, 0, 1), -0.003, 0.006),
+        ],
+        "cheek: puff (out of the face) and raise (a squint, a smile)",
+    )
+    normal = unit((CHEEK_AT - FACE[0]) / FACE[1] ** 2)
+    cheek.geom(type="sphere", pos=CHEEK_AT - 0.023 * normal, size=[0.022], **vis("skin"))
+    wing = surface(NOSE_BASE, [0.3, -1.0, -0.2])
+    nose = face_body(
+        "nose_{X}",
+        wing,
+        [slide("nose_{X}_sneer", (0, 0, 1), 0.0, 0.005)],
+        "nostril wing: raised by a sneer",
+    )
+    nose.geom(
+        type="ellipsoid",
+        pos=wing + [-0.002, 0.0025, 0.0005],
+        size=[0.0055, 0.0040, 0.0045],
+        **vis("skin"),
+    )
+    return [cheek, nose]
+
+
+def lip_joints(stem: str, vertical: str, up: float) -> list[Joint]:
+    """A lip half's slides: ``vertical`` (+z for the upper lip's raise, -z for the lower's
+    down), ``out`` (forward), ``in`` (toward the midline); and ``tilt``, a hinge at the
+    midline that lifts the half's outer end (a smile's curve)."""
+    return [
+        slide(f"{stem}_{vertical}", (0, 0, up), -0.004, 0.008),
+        slide(f"{stem}_out", (1, 0, 0), -0.006, 0.008),
+        slide(f"{stem}_in", (0, 1, 0), -0.005, 0.008),
+        hinge(f"{stem}_tilt", "face_hinge", (-1, 0, 0), -20, 25),
+    ]
+
+
+def build_lips() -> list[Body]:
+    """The upper lip's halves and the mouth corners (on the head)."""
+    lip = face_body(
+        "lip_up_{X}",
+        LIP_UP[1][3:],
+        lip_joints("lip_up_{X}", "raise", 1),
+        "upper lip, one half; origin on the midline",
+    )
+    for ft in LIP_UP:
+        lip.geom(type="capsule", fromto=ft, size=[0.0045], **vis("lips"))
+    corner = face_body(
+        "mouth_{X}",
+        CORNER_R,
+        [
+            slide("mouth_{X}_up", (0, 0, 1), -0.008, 0.008),
+            slide("mouth_{X}_out", (0, -1, 0), -0.012, 0.010),
+            slide("mouth_{X}_fwd", (1, 0, 0), -0.006, 0.008),
+        ],
+        "mouth corner: up, out (away from the midline), forward",
+    )
+    corner.geom(type="sphere", pos=CORNER_R + [-0.0015, 0, 0], size=[0.0036], **vis("lips"))
+    return [lip, corner]
+
+
+def build_jaw(head: Body) -> Body:
+    jaw = head.add(Body("jaw", JAW, comment="lower jaw; hinge at the temporo-mandibular joints"))
+    jaw.joints = [
+        hinge("jaw_open", "face_hinge", (0, 1, 0), -2, 30),
+        slide("jaw_fwd", (1, 0, 0), -0.002, 0.006),
+        slide("jaw_lat", (0, 1, 0), -0.006, 0.006),
+    ]
+    jaw.geom(**ellipsoid(CHIN, col()))
+    jaw.geom(**ellipsoid(CHIN, vis("skin")))
+    # the jaw's sides and underside (visual): fills the lower face between chin and ears
+    jaw.geom(type="ellipsoid", pos=[0.026, 0, 0.619], size=[0.050, 0.060, 0.028], **vis("skin"))
+    # the inside of the mouth behind the lower lip (shows when the jaw opens)
+    jaw.geom(type="ellipsoid", pos=[0.074, 0, 0.622], size=[0.009, 0.019, 0.010], **vis("mouth"))
+
+    def jaw_lat(b):  # the lower lip's skin for contacts (what shows moves with lip_low_X)
+        for ft in LIP_LOW:
+            b.geom(type="capsule", fromto=ft, size=[0.0036], **shell())
+
+    both_sides(jaw_lat, jaw)
+    jaw.site("CH", surface(CHIN, unit([1.0, 0, -0.9])))
+    jaw.site("TO", [0.082, 0.0, 0.618])
+    lip = face_body(
+        "lip_low_{X}",
+        LIP_LOW[1][3:],
+        lip_joints("lip_low_{X}", "down", -1),
+        "lower lip, one half; origin on the midline",
+    )
+    for ft in LIP_LOW:
+        lip.geom(type="capsule", fromto=ft, size=[0.0049], **vis("lips"))
+    for side in ("L", "R"):
+        jaw.add(realize(lip, side))
+    tongue = jaw.add(
+        face_body(
+            "tongue",
+            [0.050, 0.0, 0.611],
+            [slide("tongue_out", (1, 0, 0), 0.0, 0.030)],
+            "tongue: out between the lips",
+        )
+    )
+    tongue.geom(
+        type="ellipsoid", pos=[0.059, 0.0, 0.611], size=[0.017, 0.013, 0.0048], **vis("tongue")
+    )
+    return jaw
+
+
+def build_face(head: Body) -> None:
+    """The jaw, eyes, lids, brows, cheeks, nostrils, lips and tongue under ``head``; the
+    inside of the mouth (dark) on the head, behind the lips."""
+    head.geom(type="ellipsoid", pos=[0.072, 0, 0.612], size=[0.0105, 0.019, 0.018], **vis("mouth"))
+    # the face close-up: straight in front, the brows to the chin at 640 x 480
+    head.cameras.append(("face", [0.62, 0.0, 0.672], [0.05, 0.0, 0.667], 20))
+    build_jaw(head)
+    templates = [build_eye(), *build_lids(), *build_brows(), *build_cheek_nose(), *build_lips()]
+    for tmpl in templates:
         for side in ("L", "R"):
             head.add(realize(tmpl, side))
-    # put the bones first: eye_L, eye_R, then the face articulators
-    order = ["jaw", "eye_L", "eye_R", "lid_L", "lid_R", "brow_L", "brow_R", "mouth_L", "mouth_R"]
-    head.children.sort(key=lambda b: order.index(b.name))
-    return neck
 
 
 def build_finger(f: str, palm_origin: np.ndarray) -> Body:
@@ -789,6 +958,8 @@ MATERIALS = {
     "iris": "0.30 0.20 0.10 1",
     "pupil": "0.03 0.03 0.03 1",
     "lips": "0.75 0.38 0.38 1",
+    "mouth": "0.16 0.04 0.05 1",
+    "tongue": "0.80 0.40 0.42 1",
     "nail": "0.95 0.80 0.76 1",
 }
 
@@ -862,6 +1033,19 @@ def write_body(parent_el, body: Body, parent_pos) -> None:
         ET.SubElement(el, "geom", ga)
     for s in body.sites:
         ET.SubElement(el, "site", name=s.name, pos=fmt(s.pos - body.pos))
+    for name, pos, target, fovy in body.cameras:
+        # "track": follows the body's position, keeps its world orientation (a head that
+        # nods or turns is seen doing it)
+        pos = np.asarray(pos, float)
+        ET.SubElement(
+            el,
+            "camera",
+            name=name,
+            mode="track",
+            pos=fmt(pos - body.pos),
+            xyaxes=look_at(pos, target),
+            fovy=fmt(fovy),
+        )
     for c in body.children:
         write_body(el, c, body.pos)
 

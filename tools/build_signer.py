@@ -223,7 +223,11 @@ def realize(body: Body, side: str) -> Body:
     def pt(p):
         return mirror_point(p) if m else np.asarray(p, float)
 
-    out = Body(sided(body.name, side), pt(body.pos), inertial=body.inertial, comment=body.comment)
+    inertial = body.inertial
+    if inertial and "pos" in inertial:
+        inertial = {**inertial, "pos": pt(inertial["pos"])}
+    out = Body(sided(body.name, side), pt(body.pos), inertial=inertial, comment=body.comment)
+    out.cameras = list(body.cameras)
     for j in body.joints:
         axis = j.axis
         if m and j.mirror:
@@ -464,8 +468,11 @@ LIP_LOW = (
     [0.0840, -0.003, 0.6135, 0.0840, 0.0, 0.6135],
 )
 CORNER_R = np.array([0.0745, -0.0235, 0.6190])
-#: Every face articulator's inertia: light enough not to load the neck (0.2 g).
-FACE_INERTIA = {"mass": 0.0002, "diaginertia": [2e-9, 2e-9, 2e-9]}
+#: The face articulators' inertias: the upper lids, inner brows and mouth corners weigh
+#: 1 g each, as the rig's first articulators did, the others next to nothing, so that the
+#: head loads the neck as it did (the postures of the manual articulators stay the same).
+FACE_INERTIA = {"mass": 1e-7, "diaginertia": [1e-12, 1e-12, 1e-12]}
+FACE_INERTIA_1G = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
 #: The cheek: a skin sphere under the face's surface by the mouth, puffed out along CHEEK_OUT.
 CHEEK_AT = front(FACE, -0.045, 0.628)
 CHEEK_OUT = unit([0.45, -0.85, -0.2])
@@ -485,8 +492,13 @@ def rotate(v, axis, deg: float) -> np.ndarray:
 
 def face_body(name, pos, joints, comment) -> Body:
     b = Body(name, np.asarray(pos, float), joints=joints, comment=comment)
-    b.inertial = FACE_INERTIA
+    b.inertial = FACE_INERTIA_1G if name in ("lid_{X}", "brow_{X}", "mouth_{X}") else FACE_INERTIA
     return b
+
+
+def at_centre(inertia: dict, pos) -> dict:
+    """``inertia`` with its centre of mass at world ``pos``."""
+    return {**inertia, "pos": np.asarray(pos, float)}
 
 
 def build_eye() -> Body:
@@ -564,6 +576,8 @@ def build_brows() -> list[Body]:
     # (3 mm past the joint: the two parts still overlap when the inner one knits)
     past = pts[1] + 0.003 * unit(pts[1] - pts[0])
     inner.geom(type="capsule", fromto=np.r_[pts[0], past], size=[0.0032], **vis("brow"))
+    # the brow's mass where the one-piece brow had its centre
+    inner.inertial = at_centre(FACE_INERTIA_1G, front(CRANIUM, -0.033, 0.714))
     outer = face_body(
         "brow_out_{X}",
         pts[1],
@@ -1010,7 +1024,7 @@ def write_body(parent_el, body: Body, parent_pos) -> None:
         ET.SubElement(
             el,
             "inertial",
-            pos="0 0 0",
+            pos=fmt(np.asarray(body.inertial.get("pos", body.pos)) - body.pos),
             mass=fmt(body.inertial["mass"]),
             diaginertia=fmt(body.inertial["diaginertia"]),
         )

@@ -222,12 +222,14 @@ def _cmd_realize(args, run: _Run) -> int:
     if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
         if args.dynamics:
             raise AzeeError("--dynamics realizes one score at a time (give one SCORE and OUT.npz)")
+        if args.blinks is not None:
+            raise AzeeError("--blinks: give one score (automatic blinks are per score)")
         return _realize_many(args)
     if args.dynamics and args.mode != "multitrack":
         raise AzeeError("--dynamics follows the multitrack realization; drop --mode flattened")
     path = args.score[0]
     _outputs((args.output, args.report), (path,), args.lexicon)
-    score = load_score(run.score_path(path, args.lexicon))
+    score = _with_blinks(load_score(run.score_path(path, args.lexicon)), args)
     if args.dynamics:
         from azee_mj import physics
 
@@ -241,6 +243,34 @@ def _cmd_realize(args, run: _Run) -> int:
     if args.dynamics:
         print(rollout.summary())
     return 1 if args.strict and any(not t.ok for t in rollout.traces) else 0
+
+
+def _with_blinks(score, args):
+    """``score`` with automatic blinks when ``--blinks SEED`` was given."""
+    if getattr(args, "blinks", None) is None:
+        return score
+    from azee_mj.blinks import add_blinks
+
+    return add_blinks(score, args.blinks, rate=args.blink_rate)
+
+
+def _add_blinks(p) -> None:
+    from azee_mj.blinks import RATE_PER_MIN
+
+    p.add_argument(
+        "--blinks",
+        type=int,
+        metavar="SEED",
+        help="add automatic eye blinks, drawn from SEED (the same seed, the same blinks; "
+        "default: none)",
+    )
+    p.add_argument(
+        "--blink-rate",
+        type=float,
+        default=RATE_PER_MIN,
+        metavar="PER_MIN",
+        help=f"mean blinks per minute with --blinks (default {RATE_PER_MIN:g})",
+    )
 
 
 def _dir_like(path: str) -> bool:
@@ -304,6 +334,8 @@ def _clip(args, run: _Run, progress: bool = True):
         score=score,
         fps=args.fps or DEFAULT_FPS,
         progress=_Progress("realize") if progress else None,
+        blinks=getattr(args, "blinks", None),
+        blink_rate=getattr(args, "blink_rate", None),
     )
 
 
@@ -448,6 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="physics mode: MuJoCo moves the signer along the realization, with human "
         "torque limits (adds torques, effort and energy; docs/physics.md)",
     )
+    _add_blinks(r)
     _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)
 
@@ -473,6 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--camera", choices=CAMERAS, help="start from a fixed camera (default: free)")
     v.add_argument("--no-targets", action="store_true", help="do not draw constraint targets")
     v.add_argument("--max-frames", type=int, help=argparse.SUPPRESS)  # for tests
+    _add_blinks(v)
     v.set_defaults(func=_cmd_preview)
 
     w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
@@ -504,6 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="processes rendering video frames (default: 2 "
         "where 2 cores are usable, 1 for short videos)",
     )
+    _add_blinks(w)
     w.set_defaults(func=_cmd_render)
 
     e = sub.add_parser(

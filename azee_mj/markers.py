@@ -113,12 +113,19 @@ def load_clip(
     score: str | os.PathLike | None = None,
     fps: float = DEFAULT_FPS,
     progress: Callable[[float], None] | None = None,
+    blinks: int | None = None,
+    blink_rate: float | None = None,
 ) -> Clip:
-    """A clip from ``SCORE.json`` (realized at ``fps`` [frames/s]) or ``ROLLOUT.npz`` (with
+    """A clip from ``SCORE.json`` (realized at ``fps`` [frames/s], with automatic blinks
+    drawn from seed ``blinks`` if given, ``blink_rate`` a minute) or ``ROLLOUT.npz`` (with
     an optional ``score`` for targets and the schedule)."""
     path = Path(path)
     if path.suffix.lower() == ".json":
         s = sc.load_score(path)
+        if blinks is not None:
+            from azee_mj.blinks import add_blinks
+
+            s = add_blinks(s, blinks, **({} if blink_rate is None else {"rate": blink_rate}))
         rollout = realize(s, fps=fps, solver=shared_solver(), progress=progress)
         return Clip.from_rollout(rollout, s, path.stem)
     if path.suffix.lower() != ".npz":

@@ -23,6 +23,7 @@ Sources of the numbers are in ``azee_mj/mjcf/README.md``.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -539,7 +540,7 @@ def build_lids() -> list[Body]:
     # the lash line along the upper lid's margin, 0.4 mm out of the eyeball
     axis = _dir(UPPER_MARGIN + LID_EDGE)
     edge = [0.0124 * rotate(_dir(UPPER_MARGIN), axis, a) for a in (-55.0, -20.0, 20.0, 55.0)]
-    for a, b in zip(edge, edge[1:]):
+    for a, b in itertools.pairwise(edge):
         up.geom(type="capsule", fromto=np.r_[EYE_R + a, EYE_R + b], size=[0.0006], **vis("brow"))
     low = face_body(
         "lid_low_{X}",

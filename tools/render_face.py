@@ -16,10 +16,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from azee_mj import face  # noqa: E402
-from azee_mj.arkit import ARKIT_SHAPES  # noqa: E402
-from azee_mj.model import load_model  # noqa: E402
-from azee_mj.render import FrameRenderer  # noqa: E402
+from azee_mj import face
+from azee_mj.arkit import ARKIT_SHAPES
+from azee_mj.model import load_model
+from azee_mj.render import FrameRenderer
 
 
 def main() -> None:

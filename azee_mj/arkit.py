@@ -95,7 +95,7 @@ SIDED = {
     },
     "mouthSmile": {
         f"{_C}_up": 0.008,
-        f"{_C}_out": 0.005,
+        f"{_C}_out": 0.004,
         f"{_U}_tilt": 0.10,
         f"{_W}_tilt": 0.16,
         f"{_C}_fwd": -0.002,
@@ -103,7 +103,8 @@ SIDED = {
         f"{_U}_in": -0.003,
         f"{_W}_in": -0.003,
         f"{_W}_down": 0.001,
-        "cheek_{X}_raise": 0.002,
+        "cheek_{X}_raise": 0.004,
+        "cheek_{X}_puff": 0.001,
     },
     "mouthFrown": {
         f"{_C}_up": -0.006,
@@ -180,11 +181,11 @@ BOTH = {
         f"{_C}_out": -0.011,
         f"{_C}_fwd": 0.005,
     },
-    "mouthRollLower": {f"{_W}_out": -0.005, f"{_W}_down": -0.0015},
+    "mouthRollLower": {f"{_W}_out": -0.004, f"{_W}_down": -0.0015},
     "mouthRollUpper": {f"{_U}_out": -0.005, f"{_U}_raise": -0.0015},
     "mouthShrugLower": {f"{_W}_down": -0.003, f"{_W}_out": 0.002},
     "mouthShrugUpper": {f"{_U}_raise": 0.002, f"{_U}_out": 0.001},
-    "tongueOut": {"tongue_out": 0.028, "jaw_open": 0.12, f"{_W}_down": 0.004},
+    "tongueOut": {"tongue_out": 0.028, "jaw_open": 0.15, f"{_W}_down": 0.006},
 }
 
 SIDE_SUFFIX = {"L": "Left", "R": "Right"}

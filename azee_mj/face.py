@@ -89,19 +89,21 @@ def lip_aperture(model: mujoco.MjModel, data: mujoco.MjData) -> float:
 
 
 def cheek_bulge(model: mujoco.MjModel, data: mujoco.MjData, side: str, rest: float) -> float:
-    """How far [m] the skin at the cheek site ``CK_side`` stands out of its rest place
-    (``rest``: :func:`skin_depth` at the rest posture)."""
+    """How far [m] the skin of cheek ``side`` stands out of its rest place (``rest``:
+    :func:`skin_depth` at the rest posture)."""
     return rest - skin_depth(model, data, side)
 
 
 def skin_depth(model: mujoco.MjModel, data: mujoco.MjData, side: str) -> float:
-    """Distance [m] from 50 mm outside the cheek site, along its normal, to the skin."""
-    s = model.site(f"CK_{side}").id
-    b = model.site_bodyid[s]
-    n = data.xmat[b].reshape(3, 3) @ np.array(DEFAULT_MAP.normals[f"CK_{side}"])
-    pnt = data.site_xpos[s] + 0.05 * n
+    """Distance [m] to the skin from 50 mm out of the face along the cheek's puff axis,
+    through the cheek body's rest place (fixed to the head)."""
+    cheek = model.body(f"cheek_{side}").id
+    head = model.body_parentid[cheek]
+    axis = model.jnt_axis[model.joint(f"cheek_{side}_puff").id]
+    R = data.xmat[head].reshape(3, 3)
+    pnt = data.xpos[head] + R @ (model.body_pos[cheek] + 0.05 * axis)
     gid = np.array([-1], np.int32)
-    return float(mujoco.mj_ray(model, data, pnt, -n, _VISUAL, 1, -1, gid))
+    return float(mujoco.mj_ray(model, data, pnt, -(R @ axis), _VISUAL, 1, -1, gid))
 
 
 def face_bodies(model: mujoco.MjModel, signer_map: SignerMap = DEFAULT_MAP) -> list[int]:
@@ -112,8 +114,8 @@ def face_bodies(model: mujoco.MjModel, signer_map: SignerMap = DEFAULT_MAP) -> l
 
 @dataclasses.dataclass(frozen=True)
 class Displacement:
-    """How a posture moves the face: per body, the largest displacement [m] of one of its
-    visual geoms' centres from the rest posture."""
+    """How a posture moves the face: per body, the largest displacement [m] of a point of
+    its visual geoms (their centres and the ends of their axes)."""
 
     by_body: Mapping[str, float]
 
@@ -127,17 +129,37 @@ class Displacement:
         return max(self.by_body.values(), default=0.0)
 
 
+def _extent(model: mujoco.MjModel, g: int) -> np.ndarray:
+    """Half-extents of geom ``g`` along its own axes [m]."""
+    s = model.geom_size[g]
+    t = model.geom_type[g]
+    if t == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return np.array([s[0], s[0], s[0]])
+    if t in (mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_CYLINDER):
+        return np.array([s[0], s[0], s[1] + s[0]])
+    return np.array(s[:3])
+
+
+def probe_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
+    """(7, 3) geom ``g``'s centre and the ends of its three axes, in the world [m]."""
+    c, R = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)
+    e = _extent(model, g)
+    axes = np.vstack([np.zeros(3), np.diag(e), -np.diag(e)])
+    return c + axes @ R.T
+
+
 def displacement(model: mujoco.MjModel, q0: np.ndarray, q1: np.ndarray) -> Displacement:
     """How posture ``q1`` moves each face body's visual geoms from posture ``q0``."""
     d = mujoco.MjData(model)
-    pos = []
+    bodies = face_bodies(model)
+    geoms = {b: np.flatnonzero((model.geom_bodyid == b) & (model.geom_group == 2)) for b in bodies}
+    pts = []
     for q in (q0, q1):
         d.qpos[:] = q
         mujoco.mj_kinematics(model, d)
-        pos.append(d.geom_xpos.copy())
-    moved = np.linalg.norm(pos[1] - pos[0], axis=1)
+        pts.append({g: probe_points(model, d, g) for gs in geoms.values() for g in gs})
     out = {}
-    for b in face_bodies(model):
-        gs = np.flatnonzero((model.geom_bodyid == b) & (model.geom_group == 2))
-        out[model.body(b).name] = float(moved[gs].max()) if gs.size else 0.0
+    for b, gs in geoms.items():
+        moved = [np.linalg.norm(pts[1][g] - pts[0][g], axis=1).max() for g in gs]
+        out[model.body(b).name] = float(max(moved, default=0.0))
     return Displacement(out)

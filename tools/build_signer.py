@@ -475,7 +475,7 @@ CORNER_R = np.array([0.0745, -0.0235, 0.6190])
 FACE_INERTIA = {"mass": 1e-7, "diaginertia": [1e-12, 1e-12, 1e-12]}
 FACE_INERTIA_1G = {"mass": 0.001, "diaginertia": [1e-7, 1e-7, 1e-7]}
 #: The cheek: a skin sphere under the face's surface by the mouth, puffed out along CHEEK_OUT.
-CHEEK_AT = front(FACE, -0.045, 0.628)
+CHEEK_AT = front(FACE, -0.048, 0.630)
 CHEEK_OUT = unit([0.45, -0.85, -0.2])
 
 
@@ -690,13 +690,13 @@ def build_jaw(head: Body) -> Body:
     tongue = jaw.add(
         face_body(
             "tongue",
-            [0.050, 0.0, 0.611],
+            [0.048, 0.0, 0.619],
             [slide("tongue_out", (1, 0, 0), 0.0, 0.030)],
             "tongue: out between the lips",
         )
     )
     tongue.geom(
-        type="ellipsoid", pos=[0.059, 0.0, 0.611], size=[0.017, 0.013, 0.0048], **vis("tongue")
+        type="ellipsoid", pos=[0.057, 0.0, 0.619], size=[0.017, 0.013, 0.0045], **vis("tongue")
     )
     return jaw
 

@@ -104,7 +104,6 @@ SIDED = {
         f"{_W}_in": -0.003,
         f"{_W}_down": 0.001,
         "cheek_{X}_raise": 0.004,
-        "cheek_{X}_puff": 0.001,
     },
     "mouthFrown": {
         f"{_C}_up": -0.006,

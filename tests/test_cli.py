@@ -12,6 +12,7 @@ import pytest
 
 from azee_mj import __version__
 from azee_mj.cli import build_parser, main
+from azee_mj.model import load_model
 from azee_mj.sites import DEFAULT_MAP
 from azee_mj.timing import DEFAULT_FPS
 
@@ -64,7 +65,7 @@ def test_realize_writes_a_rollout_and_a_report(tmp_path, capsys):
     )
     assert "3/3 constraints within tolerance" in capsys.readouterr().out
     with np.load(out, allow_pickle=False) as z:
-        assert z["qpos"].shape == (31, 83)
+        assert z["qpos"].shape == (31, load_model().nq)
         assert z["time"][-1] == pytest.approx(1.2)
         assert float(z["fps"]) == 25.0
         assert z["site_pos"].shape == (31, len(DEFAULT_MAP.sites), 3)

@@ -26,7 +26,7 @@ from azee_mj.export.player import camera_pose
 from azee_mj.model import SCENE_PATH
 from azee_mj.schedule import schedule
 from azee_mj.score import load_score
-from azee_mj.sites import DEFAULT_MAP
+from azee_mj.sites import DEFAULT_MAP, FACE_JOINTS
 from azee_mj.timeline import realize
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -162,7 +162,9 @@ def test_gltf_channels_rotate_hinged_bodies_and_translate_sliding_ones(model, re
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE
     }
     assert got == {(b, "rotation") for b in hinge} | {(b, "translation") for b in slide}
-    assert {"brow_L", "brow_R", "mouth_L", "mouth_R"} == slide
+    # the face rig's sliding parts (the jaw, brows, cheeks, nostrils, lips, corners, tongue)
+    face = {names[model.joint(j).bodyid[0]] for j in FACE_JOINTS}
+    assert slide == face - {"lid_L", "lid_R", "lid_low_L", "lid_low_R"}
     assert all(s.interpolation == "LINEAR" for s in g.animations[0].samplers)
 
 
@@ -261,16 +263,8 @@ def test_bvh_joints_are_azee_bones_with_the_model_offsets(model, tmp_path):
     out = export(Motion(model.qpos0[None], 50.0), tmp_path / "m.bvh")
     layout = {j.Name: j for j, _, _ in bvhio.readAsBvh(str(out)).Root.layout()}
     assert set(DEFAULT_MAP.bones) <= set(layout)
-    assert set(layout) - set(DEFAULT_MAP.bones) == {
-        "pelvis",
-        "jaw",
-        "lid_L",
-        "lid_R",
-        "brow_L",
-        "brow_R",
-        "mouth_L",
-        "mouth_R",
-    }
+    face = {model.body(model.joint(j).bodyid[0]).name for j in FACE_JOINTS}
+    assert set(layout) - set(DEFAULT_MAP.bones) == {"pelvis"} | face
     palm = layout["palm_R"]
     np.testing.assert_allclose(np.array(palm.Offset), mo.YUP @ model.body("palm_R").pos, atol=1e-9)
     assert [c.Name for c in layout["f_arm_R"].Children] == ["palm_R"]
@@ -454,7 +448,7 @@ def test_unknown_suffix_is_one_message_and_no_file(tmp_path, capsys):
 
 
 @pytest.mark.extra("export")
-def test_an_npz_of_another_model_is_refused(tmp_path, capsys):
+def test_an_npz_of_another_model_is_refused(model, tmp_path, capsys):
     bad = tmp_path / "other.npz"
     np.savez(
         bad,
@@ -466,12 +460,14 @@ def test_an_npz_of_another_model_is_refused(tmp_path, capsys):
     )
     out = tmp_path / "m.glb"
     err = _exit2(["export", str(bad), "-o", str(out)], capsys)
-    assert err == (f"azee-mj: error: {bad}: qpos has 7 columns; the bundled signer has nq=83\n")
+    assert err == (
+        f"azee-mj: error: {bad}: qpos has 7 columns; the bundled signer has nq={model.nq}\n"
+    )
     wrong_sites = tmp_path / "sites.npz"
     np.savez(
         wrong_sites,
         time=np.arange(3) / 50,
-        qpos=np.zeros((3, 83)),
+        qpos=np.zeros((3, model.nq)),
         fps=np.array(50.0),
         site_names=np.array(["a"]),
         site_pos=np.zeros((3, 1, 3)),

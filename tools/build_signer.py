@@ -598,7 +598,7 @@ def build_cheek_nose() -> list[Body]:
         CHEEK_AT,
         [
             slide("cheek_{X}_puff", CHEEK_OUT, 0.0, 0.010),
-            slide("cheek_{X}_raise", (0, 0, 1), -0.003, 0.006),
+            slide("cheek_{X}_raise", (0, 0, 1), -0.005, 0.006),
         ],
         "cheek: puff (out of the face) and raise (a squint, a smile)",
     )
@@ -627,7 +627,7 @@ def lip_joints(stem: str, vertical: str, up: float) -> list[Joint]:
     return [
         slide(f"{stem}_{vertical}", (0, 0, up), -0.004, 0.008),
         slide(f"{stem}_out", (1, 0, 0), -0.006, 0.008),
-        slide(f"{stem}_in", (0, 1, 0), -0.005, 0.008),
+        slide(f"{stem}_in", (0, 1, 0), -0.007, 0.008),
         hinge(f"{stem}_tilt", "face_hinge", (-1, 0, 0), -20, 25),
     ]
 

@@ -109,6 +109,11 @@ def add_blinks(
     ``seed``. The blocks are named ``BLINK<k>_OPEN``, ``BLINK<k>``, ``BLINK<k>_REOPEN``
     (a number ``k`` no sibling name uses)."""
     root = score.root
+    if root.kind is not sc.BlockKind.SYNC:
+        raise AzeeError(
+            f"--blinks: the root block {root.path!r} is a {root.kind.value} block; automatic "
+            "blinks need a sync root to add their blocks to"
+        )
     times = blink_times(score.duration, seed, eyelid_intervals(score, signer_map), rate)
     taken = {c.name for c in root.children}
     added, k = [], 0
@@ -124,10 +129,5 @@ def add_blinks(
         k += 1
     if not added:
         return score
-    if root.kind is not sc.BlockKind.SYNC:
-        raise AzeeError(
-            f"--blinks: the root block {root.path!r} is a {root.kind.value} block; automatic "
-            "blinks need a sync root to add their blocks to"
-        )
     new_root = dataclasses.replace(root, children=root.children + tuple(added))
     return dataclasses.replace(score, root=new_root)

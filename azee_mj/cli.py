@@ -98,7 +98,16 @@ def _cmd_sites(args, run: _Run) -> int:
     for k, b in m.bones.items():
         print(f"  {k:12s} {b.body:12s} dir {_v(b.dir)} nrm {_v(b.nrm)}")
     print("loci: " + ", ".join(f"^{k} -> {v}" for k, v in m.loci.items()))
-    print("morphs: " + ", ".join(m.morphs))
+    from azee_mj.arkit import ARKIT_SHAPES
+
+    sided = [k for k, v in m.morphs.items() if v.sided]
+    face = [k for k in ARKIT_SHAPES if k in m.morphs]
+    others = [k for k in m.morphs if k not in face]
+    print("morphs: " + ", ".join(others))
+    print(f"face morphs, the {len(face)} ARKit blend shapes (Left/Right: the signer's own):")
+    for i in range(0, len(face), 6):
+        print("  " + " ".join(face[i : i + 6]))
+    print("sided morphs (with 'side': s, w, R or L; both sides without): " + ", ".join(sided))
     return 0
 
 

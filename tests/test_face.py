@@ -271,3 +271,44 @@ def test_morph_posture_sums_and_clips(model):
     q = face.morph_posture(model, {"eyeBlink:R": 1.0})
     assert q[model.joint("lid_R_close").qposadr[0]] == arkit.SIDED["eyeBlink"]["lid_{X}_close"]
     assert q[model.joint("lid_L_close").qposadr[0]] == 0.0
+
+
+# --------------------------------------------------------------------------- rendered
+
+
+def _segmented(model, fr, weights, geoms) -> tuple[int, np.ndarray]:
+    """Pixels of the face camera showing one of ``geoms`` (segmentation), and the colour
+    image, for the face at ``weights``."""
+    q = face.morph_posture(model, weights)
+    image = fr.render(q)
+    fr.r.enable_segmentation_rendering()
+    try:
+        seg = fr.draw(q)
+    finally:
+        fr.r.disable_segmentation_rendering()
+    # segmentation ids are the scene model's geom ids: the signer's come first
+    mask = np.isin(seg[..., 0], list(geoms)) & (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM))
+    return int(mask.sum()), image, mask
+
+
+def test_a_blink_hides_the_iris_and_an_open_mouth_shows_a_dark_opening(model, gl):
+    from azee_mj.render import FrameRenderer
+
+    with FrameRenderer(camera="face", size=(640, 480), antialias=False) as fr:
+        scene = fr.model  # segmentation gives the scene's geom ids (the floor comes first)
+        iris_mat = mujoco.mj_name2id(scene, mujoco.mjtObj.mjOBJ_MATERIAL, "iris")
+        iris = {g for g in range(scene.ngeom) if scene.geom_matid[g] == iris_mat}
+        inside = face.mouth_geoms(scene)
+        assert len(iris) == 2 and len(inside) == 3
+        seen, _, _ = _segmented(model, fr, {}, iris)
+        assert seen > 1000  # both irises show at rest
+        for side in ("Left", "Right"):
+            one, _, _ = _segmented(model, fr, {f"eyeBlink{side}": 1.0}, iris)
+            assert 0.3 * seen < one < 0.7 * seen  # one eye shut
+        shut, _, _ = _segmented(model, fr, {"eyeBlinkLeft": 1.0, "eyeBlinkRight": 1.0}, iris)
+        assert shut == 0
+        closed, _, _ = _segmented(model, fr, {}, inside)
+        opened, image, mask = _segmented(model, fr, {"jawOpen": 1.0}, inside)
+        assert opened > 10 * max(closed, 1) and opened > 1500
+        luminance = image[mask] @ np.array([0.2126, 0.7152, 0.0722])
+        assert np.median(luminance) < 60  # dark

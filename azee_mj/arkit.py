@@ -157,7 +157,7 @@ BOTH = {
     },
     "cheekPuff": {"cheek_{X}_puff": 0.008, f"{_U}_out": 0.001, f"{_W}_out": 0.001},
     "jawOpen": {"jaw_open": 0.35, "jaw_fwd": 0.003, f"{_C}_up": -0.008, f"{_C}_out": -0.003},
-    "jawForward": {"jaw_fwd": 0.005},
+    "jawForward": {"jaw_fwd": 0.004, f"{_W}_down": -0.003},
     "mouthClose": {f"{_U}_raise": -0.002, f"{_W}_down": -0.002},
     "mouthFunnel": {
         f"{_U}_out": 0.005,

@@ -696,7 +696,7 @@ def build_jaw(head: Body) -> Body:
         )
     )
     tongue.geom(
-        type="ellipsoid", pos=[0.057, 0.0, 0.619], size=[0.017, 0.013, 0.0045], **vis("tongue")
+        type="ellipsoid", pos=[0.057, 0.0, 0.6185], size=[0.017, 0.013, 0.0055], **vis("tongue")
     )
     return jaw
 

@@ -27,7 +27,7 @@ KEYS = (
     ("space", "pause / play"),
     ("right / left", "next / previous frame (pauses)"),
     ("up or + / down or -", "faster / slower (0.1x to 2x)"),
-    ("C", "cycle the cameras: free, front, side, three-quarter, top"),
+    ("C", "cycle the cameras: free, front, side, three-quarter, top, face"),
 )
 
 

@@ -116,16 +116,19 @@ class GroupPoser:
     def unchanged(self, group, cons, state: np.ndarray, keys, t0: float) -> bool:
         """Whether ``cons`` are some of those that held ``group`` until ``t0`` (blocks
         only ended) and no track outside the group moved what they name (the head under a
-        hand): nothing needs to move."""
-        dofs = self.schedule.track_dofs
+        hand; of the face, only the joints that move it count: its jaw moves the chin, its
+        brows and lids do not): nothing needs to move."""
         prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < EPS]
         carriers = set().union(*(self.schedule.moved_by(c) for c in cons)) - group
+        moving = set().union(*(self.schedule.moving_dofs(c) for c in cons))
+        dofs = [
+            [d for d in self.schedule.track_dofs[t] if t != "face" or d in moving]
+            for t in sorted(carriers)
+        ]
         return (
             len(prev) == len(group)
             and set(cons) <= set().union(*(k.cons for k in prev))
-            and all(
-                np.allclose(state[dofs[t]], prev[0].q[dofs[t]], atol=SAME_POSTURE) for t in carriers
-            )
+            and all(np.allclose(state[d], prev[0].q[d], atol=SAME_POSTURE) for d in dofs)
         )
 
     def solve(

@@ -395,6 +395,19 @@ class Schedule:
             )
         return self._moved_cache[c]
 
+    def moving_dofs(self, c) -> np.ndarray:
+        """The dofs of the joints that move a body IK constraint ``c`` names (those of its
+        ancestors: the jaw's opening moves the chin, the brows do not), sorted."""
+        key = ("dofs", c)
+        if key not in self._moved_cache:
+            m, dofs = self.m, set()
+            for b in self.solver.bodies_of(c):
+                while b > 0:
+                    dofs.update(range(m.body_dofadr[b], m.body_dofadr[b] + m.body_dofnum[b]))
+                    b = int(m.body_parentid[b])
+            self._moved_cache[key] = np.array(sorted(dofs), int)
+        return self._moved_cache[key]
+
 
 def schedule(
     score: sc.Score | str, solver: ik.Solver | None = None

@@ -28,6 +28,10 @@ from azee_mj.model import SCENE_PATH
 
 #: The fixed cameras of ``scene.xml``, in the order ``C`` cycles them in the viewer.
 CAMERAS = ("front", "side", "three-quarter", "top", "face")
+#: Close-up cameras: drawn without shadows (the key light's shadow map, sized for the whole
+#: signer, leaves jagged shadow edges across the face) and with every facet of the round
+#: geoms (the face is made of them).
+CLOSE_UPS = ("face",)
 #: Backends tried, in order, when ``MUJOCO_GL`` is unset.
 GL_BACKENDS = ("egl", "osmesa")
 #: Default image size [px].
@@ -131,11 +135,14 @@ def gl_backend(probe: Callable[[str], bool] | None = None) -> str:
 # ---------------------------------------------------------------------------------------
 
 
-def scene_model(width: int = 0, height: int = 0, *, multisample: bool = True) -> mujoco.MjModel:
+def scene_model(
+    width: int = 0, height: int = 0, *, multisample: bool = True, close_up: bool = False
+) -> mujoco.MjModel:
     """The signer on its floor with lights and cameras, with an offscreen buffer of exactly
     ``width`` x ``height`` (when given), set up for software GL (see docs/rendering.md).
     ``multisample``: 4x multisampling for a ``mujoco.Renderer`` on it (:class:`FrameRenderer`
-    turns it off and supersamples instead)."""
+    turns it off and supersamples instead); ``close_up``: every facet of the round geoms
+    (for the :data:`CLOSE_UPS` cameras)."""
     m = mujoco.MjModel.from_xml_path(str(SCENE_PATH))
     if width and height:  # no larger than the image: memory
         m.vis.global_.offwidth, m.vis.global_.offheight = width, height
@@ -144,7 +151,9 @@ def scene_model(width: int = 0, height: int = 0, *, multisample: bool = True) ->
     # (not 4096), and 16 x 10 facets per round geom (not 28 x 16; every geom is drawn in
     # several passes a frame, for the shadow map and the lights).
     q.shadowsize = min(q.shadowsize, SHADOW_SIZE)
-    q.numslices, q.numstacks = min(q.numslices, TESSELLATION[0]), min(q.numstacks, TESSELLATION[1])
+    if not close_up:
+        q.numslices = min(q.numslices, TESSELLATION[0])
+        q.numstacks = min(q.numstacks, TESSELLATION[1])
     q.offsamples = min(q.offsamples, MULTISAMPLES) if multisample else 0
     return m
 
@@ -225,7 +234,7 @@ class FrameRenderer:
         self.size = (int(size[0]), int(size[1]))
         self.render_size = render_size(self.size, antialias)
         w, h = self.render_size
-        self.model = scene_model(w, h, multisample=False)
+        self.model = scene_model(w, h, multisample=False, close_up=camera in CLOSE_UPS)
         self.cam = camera_id(self.model, camera)
         self.data = mujoco.MjData(self.model)
         self.clip = clip
@@ -238,6 +247,7 @@ class FrameRenderer:
         # The floor's mirror image of the signer (reflectance 0.1) cannot be seen from the
         # fixed cameras, and drawing it costs a whole extra pass of the scene.
         self.r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        self.r.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = camera not in CLOSE_UPS
         # A context's first frame is not always its later frames bit for bit (software GL
         # at some sizes: one pixel off, measured); drawn once here, a frame is the same
         # whichever renderer draws it, first or not. This also compiles the shaders.

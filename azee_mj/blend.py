@@ -24,14 +24,34 @@ MIN_BLEND = 0.08
 SAME_POSTURE = 2e-3
 #: Peak joint speed a blend is sized for [rad/s] (the limit is 25 rad/s).
 BLEND_SPEED = 12.0
-#: Fastest a joint may turn between two frames solved one by one [rad/s]: a per-frame
-#: solve stays on the branch of the frame before.
-MAX_JOINT_SPEED = 20.0
+#: The step box of frames solved one by one, where the blend itself moves slower [rad/s]:
+#: a per-frame solve stays on the branch of the frame before. It is not a speed limit: a
+#: frame's box grows with its blend's own step (:mod:`azee_mj.framesolver`), and a gap too
+#: short for it only makes a blend start earlier (:func:`blend_window`).
+BRANCH_SPEED = 20.0
+#: The name this constant had when it clamped joint speeds (kept for callers).
+MAX_JOINT_SPEED = BRANCH_SPEED
 #: The minimum-jerk profile's peak speed over its mean speed (its slope at the middle,
 #: 30 u^2 (1 - u)^2 at u = 1/2): a change ``dq`` over ``T`` peaks at ``15/8 dq / T``.
 MINJERK_PEAK = 15 / 8
 #: Two times closer than this are the same instant [s].
 EPS = 1e-9
+
+# Movements the realizer times itself (from rest, back to rest): sized from their distance
+# at a human speed, a single minimum-jerk bell (peak = 15/8 x distance / duration).
+#: Peak wrist speed a lead-in or a return to rest is sized for [m/s] (human range <= 3).
+REST_SPEED = 1.5
+#: Peak joint speed of a track without a wrist (trunk, head, eyes, face, fingers) on such a
+#: movement [rad/s].
+REST_JOINT_SPEED = 6.0
+#: Shortest lead-in from rest [s]: Performs' default time to place a sign (0.3 s).
+MIN_LEAD = 0.3
+#: Shortest return to rest [s]: Performs' default time to relax to neutral (0.5 s).
+MIN_RELAX = 0.5
+#: Longest lead-in or return to rest [s].
+MAX_REST_MOVE = 1.2
+#: How long a track with no further block holds its last posture before relaxing [s].
+REST_HOLD = 0.3
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -65,6 +85,28 @@ class Hold:
     relax: bool
     shape_only: bool
     due: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Rest:
+    """How one track leaves and returns to rest (the neutral posture).
+
+    Attributes:
+      lead: duration [s] of the blend from rest into its first hold, ending as that hold
+        starts; None: the track starts in its first hold's posture (no lead-in).
+      relax_at: when [s] it starts back to rest after its last hold; None: it stays.
+      relax: duration [s] of that return.
+    """
+
+    lead: float | None
+    relax_at: float | None = None
+    relax: float = 0.0
+
+
+def rest_duration(distance: float, speed: float, shortest: float) -> float:
+    """The duration [s] of a minimum-jerk movement over ``distance`` (m or rad) that peaks
+    at ``speed`` (m/s or rad/s), within ``[shortest, MAX_REST_MOVE]``."""
+    return float(np.clip(MINJERK_PEAK * distance / speed, shortest, MAX_REST_MOVE))
 
 
 def minjerk(u: np.ndarray | float):
@@ -151,23 +193,41 @@ def track_curve(
     home: np.ndarray,
     flattened: bool = False,
     carried=(),
+    rest: Rest | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint values (T, len(dofs)) of one track at ``times`` [s], from the neutral
     posture ``home`` (nq,) through its ``keys``, and a (T,) flag where it blends (see
-    :func:`blend_window`)."""
-    out = np.tile(home[dofs], (len(times), 1))
+    :func:`blend_window`). With ``rest``, the first blend is the track's lead-in (``rest.lead``
+    long, or none: it starts in its first posture) and it returns to ``home`` after its last
+    hold at ``rest.relax_at`` (see :class:`Rest`)."""
+    holds = holds_of(keys, dofs)
+    start = holds[0].q if rest is not None and rest.lead is None and holds else home[dofs]
+    out = np.tile(start, (len(times), 1))
     blending = np.zeros(len(times), bool)
-    prev, prev_q = None, home[dofs]
-    for hold in holds_of(keys, dofs):
-        w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
-        sel = (times >= w0) & (times < w1)
-        if w1 > w0:
-            u = minjerk((times[sel] - w0) / (w1 - w0))[:, None]
-            out[sel] = prev_q + u * (hold.q - prev_q)
-            blending[sel] = True
-        out[(times >= w1)] = hold.q
+    prev, prev_q = None, start
+    for hold in holds:
+        if prev is None and rest is not None:
+            lead = rest.lead or 0.0
+            w0, w1 = hold.start - lead, hold.start
+        else:
+            w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
+        _blend(out, blending, times, w0, w1, prev_q, hold.q)
         prev, prev_q = hold, hold.q
+    if rest is not None and rest.relax_at is not None and holds:
+        w0 = rest.relax_at
+        _blend(out, blending, times, w0, w0 + rest.relax, prev_q, home[dofs])
     return out, blending
+
+
+def _blend(out, blending, times, w0: float, w1: float, qa, qb) -> None:
+    """Frames at ``times`` in ``[w0, w1)`` from ``qa`` to ``qb`` in minimum-jerk time, and
+    ``qb`` from ``w1`` on (in place)."""
+    if w1 > w0:
+        sel = (times >= w0) & (times < w1)
+        u = minjerk((times[sel] - w0) / (w1 - w0))[:, None]
+        out[sel] = qa + u * (qb - qa)
+        blending[sel] = True
+    out[times >= w1] = qb
 
 
 def goal_key(keys: list[Key], i: int, dofs: np.ndarray) -> Key | None:

@@ -2,7 +2,9 @@
 overlapping block, a transpath's path point, a permanent hand shape) is solved as an IK
 problem for the joints those constraints need, nearest the blend
 (:class:`CurvePreference`), the other joints on the blend, each joint at most a step a
-frame from the frame before; a blend that would pass through the body is pushed out.
+frame from the frame before (a box that keeps a per-frame solve on the branch of the frame
+before; never smaller than the blend's own step, so it never slows a movement the score's
+timing needs); a blend that would pass through the body is pushed out.
 
 Units: seconds, metres, radians.
 """
@@ -16,7 +18,7 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
-from azee_mj.blend import MAX_JOINT_SPEED, Key, goal_key, minjerk, next_still
+from azee_mj.blend import BRANCH_SPEED, Key, goal_key, minjerk, next_still
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.kinematics import Const, SitePos
 from azee_mj.routes import path_points
@@ -28,6 +30,9 @@ FRAME_RESTARTS = 1
 CURVE_TOL = 0.05
 #: Tolerance of a transpath's path point [m].
 PATH_TOL = 1e-3
+#: A frame's step box over the largest joint change of the blend into it: the box never
+#: holds a joint slower than its blend moves.
+STEP_MARGIN = 1.5
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -93,9 +98,21 @@ class FrameSolver:
 
     def __init__(self, adapter: IKAdapter, fps: float):
         self.adapter, self.schedule = adapter, adapter.schedule
-        #: Largest joint change between two frames solved one by one [rad].
-        self.step = MAX_JOINT_SPEED / fps
+        #: Largest joint change between two frames solved one by one [rad], at the frame
+        #: being solved (:meth:`steps`).
+        self.step = BRANCH_SPEED / fps
+        self.base = self.step
+        self._reach = np.zeros(1)  # cumulative steps, for reach()
         self._needs: dict[tuple, set[int]] = {}  # constraints -> the dofs they move
+
+    def steps(self, curve: np.ndarray) -> np.ndarray:
+        """(T,) each frame's step box [rad]: ``BRANCH_SPEED / fps``, or ``STEP_MARGIN``
+        times the blend's largest joint change into the frame when that is more (a
+        transition the score times faster than the box moves at the speed it needs)."""
+        change = np.zeros(len(curve))
+        if len(curve) > 1:
+            change[1:] = np.abs(np.diff(curve, axis=0)).max(axis=1)
+        return np.maximum(self.base, STEP_MARGIN * change)
 
     def paths(self, q: np.ndarray, times: np.ndarray) -> list[Path]:
         """The score's transpaths on the blended frames ``q``."""
@@ -111,7 +128,10 @@ class FrameSolver:
         curve = q.copy()
         still = next_still(moving)
         joints = self.schedule.track_joints
+        steps = self.steps(curve)
+        self._reach = np.cumsum(steps)
         for f, t in enumerate(times):
+            self.step = float(steps[f])
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = self.held(keys, tracks, t)
             for p in paths:
@@ -247,9 +267,10 @@ class FrameSolver:
         for i, tr in enumerate(names):
             if tr not in tracks or goal[i] < 0:
                 continue
-            d, n = self.schedule.track_dofs[tr], goal[i] - f
-            lo[d] = np.maximum(lo[d], curve[goal[i]][d] - n * step)
-            hi[d] = np.minimum(hi[d], curve[goal[i]][d] + n * step)
+            d = self.schedule.track_dofs[tr]
+            room = self._reach[goal[i]] - self._reach[f] if goal[i] > f else 0.0
+            lo[d] = np.maximum(lo[d], curve[goal[i]][d] - room)
+            hi[d] = np.minimum(hi[d], curve[goal[i]][d] + room)
             if f > 0:  # and a step at most from the frame before
                 lo[d] = np.clip(lo[d], q[f - 1][d] - step, q[f - 1][d] + step)
                 hi[d] = np.clip(hi[d], q[f - 1][d] - step, q[f - 1][d] + step)
@@ -261,3 +282,20 @@ class FrameSolver:
         solver = self.adapter.solver
         adr = solver.model.jnt_qposadr[[solver.joint_id(j) for j in joints]]
         return CurvePreference(adr, self.adapter.dofs(joints), qf[adr].copy(), CURVE_TOL)
+
+    def hold_frames(self, q, times, keys, misses: dict[int, list]) -> int:
+        """Frames that leave a constraint of their block (``misses``: frame -> the
+        (constraint, tracks it drives) out of tolerance there) solved again: those
+        constraints with every constraint the keys of their tracks hold then, from the
+        frame itself and nearest it (in place). Returns how many frames were solved."""
+        joints, ad = self.schedule.track_joints, self.adapter
+        for f, missed in sorted(misses.items()):
+            tracks = set().union(*(tr for _, tr in missed))
+            cons, free = self.held(keys, tracks, times[f])
+            cons += [c for c, _ in missed if c not in cons]
+            free = sorted(free | {j for tr in tracks for j in joints[tr]})
+            near = (self.curve_preference(q[f], free),)
+            res = ad.solve(cons, free, q[f], times[f], preferences=near, restarts=FRAME_RESTARTS)
+            if res.converged:
+                q[f] = res.qpos
+        return len(misses)

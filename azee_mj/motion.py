@@ -12,6 +12,7 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -22,11 +23,19 @@ from azee_mj.blend import (
     MAX_BLEND,
     MAX_JOINT_SPEED,
     MIN_BLEND,
+    MIN_LEAD,
+    MIN_RELAX,
     MINJERK_PEAK,
+    REST_HOLD,
+    REST_JOINT_SPEED,
+    REST_SPEED,
     SAME_POSTURE,
     Hold,
     Key,
+    Rest,
+    holds_of,
     minjerk,
+    rest_duration,
     track_curve,
 )
 from azee_mj.framesolver import (
@@ -39,7 +48,7 @@ from azee_mj.framesolver import (
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.routes import arc_through, path_points
 from azee_mj.schedule import FLAT_FIXED, Mode
-from azee_mj.timing import frame_count
+from azee_mj.timing import frame_count, frame_range
 from azee_mj.trills import add_trills
 
 __all__ = [
@@ -51,12 +60,18 @@ __all__ = [
     "MAX_JOINT_SPEED",
     "MINJERK_PEAK",
     "MIN_BLEND",
+    "MIN_LEAD",
+    "MIN_RELAX",
+    "REST_HOLD",
+    "REST_JOINT_SPEED",
+    "REST_SPEED",
     "SAME_POSTURE",
     "CurvePreference",
     "Hold",
     "Key",
     "Mode",
     "Motion",
+    "Rest",
     "arc_through",
     "minjerk",
     "path_points",
@@ -68,19 +83,102 @@ FLAT_PATH_KEYS = 6
 
 class Motion:
     """Frames (pass 2) and trills (pass 3) of the adapter's schedule laid out by ``mode``
-    at ``fps`` frames per second."""
+    at ``fps`` frames per second.
 
-    def __init__(self, adapter: IKAdapter, mode: Mode, fps: float):
+    With ``rest`` (multitrack only), every track comes from rest (the neutral posture) into
+    its first posture in a lead-in timed from its distance, and returns to rest ``hold``
+    seconds after its last block; the rollout's time axis gains the lead-in before the
+    score's time 0 (:attr:`lead_frames`) and the return after its end. Without ``rest``
+    each track starts in its first posture and keeps its last one (the score's time axis)."""
+
+    def __init__(
+        self, adapter: IKAdapter, mode: Mode, fps: float, rest: bool = True, hold: float = REST_HOLD
+    ):
         self.adapter, self.schedule = adapter, adapter.schedule
         self.mode, self.fps = mode, fps
+        self.rest, self.hold = rest and mode is Mode.MULTITRACK, hold
+        #: Per track, its lead-in and return to rest (empty: none planned yet, or flattened).
+        self.rests: dict[str, Rest] = {}
+        #: Frames of lead-in before the score's time 0; the rollout ends at ``end`` [s]
+        #: (score time).
+        self.lead_frames, self.end = 0, self.schedule.score.duration
+        #: Frames :meth:`hold_constraints` solved again.
+        self.resolved = 0
+
+    @property
+    def score_start(self) -> float:
+        """Rollout time [s] of the score's time 0: frames before it are the lead-in."""
+        return self.lead_frames / self.fps
 
     def times(self) -> np.ndarray:
-        """(T,) frame times [s], ``k / fps``."""
-        return np.arange(frame_count(self.schedule.score.duration, self.fps)) / self.fps
+        """(T,) frame times [s] on the score's clock, ``(k - lead_frames) / fps``: negative
+        during the lead-in."""
+        n = frame_count(self.end + self.score_start, self.fps)
+        return (np.arange(n) - self.lead_frames) / self.fps
+
+    def plan(self, keys: dict[str, list[Key]]) -> None:
+        """Each track's lead-in and return to rest (:attr:`rests`), and the time axis they
+        need (:attr:`lead_frames`, :attr:`end`)."""
+        sched = self.schedule
+        self.rests, self.lead_frames, self.end = {}, 0, sched.score.duration
+        if self.mode is not Mode.MULTITRACK:
+            return
+        lead, end = 0.0, sched.score.duration
+        for t in sched.track_joints:
+            holds = holds_of(keys[t], sched.track_dofs[t])
+            if not holds:
+                continue
+            if not self.rest:
+                self.rests[t] = Rest(None)
+                continue
+            first, last = holds[0], holds[-1]
+            r = Rest(self.move_time(t, None, first.q, MIN_LEAD))
+            home = sched.home[sched.track_dofs[t]]
+            if not np.allclose(last.q, home, atol=SAME_POSTURE):
+                after = [e for e in self.carried(t, keys) if e > last.end]
+                at = max([last.end + self.hold, *after])
+                r = Rest(r.lead, at, self.move_time(t, last.q, None, MIN_RELAX))
+                end = max(end, at + r.relax)
+            self.rests[t] = r
+            lead = max(lead, r.lead - first.start)
+        self.tie_hands(keys)
+        self.lead_frames = int(np.ceil(lead * self.fps - 1e-6))
+        self.end = end
+
+    def tie_hands(self, keys) -> None:
+        """A hand shape forms while its arm travels: a hand track whose first posture starts
+        with its arm's takes the arm's lead-in when that is longer."""
+        for t, r in list(self.rests.items()):
+            arm = self.rests.get(t.replace("hand", "arm"))
+            if not t.startswith("hand") or arm is None or r.lead is None:
+                continue
+            if keys[t][0].start == keys[t.replace("hand", "arm")][0].start:
+                self.rests[t] = dataclasses.replace(r, lead=max(r.lead, arm.lead))
+
+    def move_time(self, track: str, qa, qb, shortest: float) -> float:
+        """Duration [s] of a movement of ``track`` between its joint values ``qa`` and
+        ``qb`` (None: rest) at a human speed: an arm by the path its wrist travels
+        (:data:`REST_SPEED`), any other track by its largest joint change
+        (:data:`REST_JOINT_SPEED`)."""
+        sched = self.schedule
+        d = sched.track_dofs[track]
+        qa = sched.home[d] if qa is None else qa
+        qb = sched.home[d] if qb is None else qb
+        site = sched.smap.sites.get(f"WR_{track[-1]}") if track.startswith("arm_") else None
+        if site is None:
+            return rest_duration(float(np.abs(qb - qa).max()), REST_JOINT_SPEED, shortest)
+        sid, q = self.adapter.solver.site_id(site), sched.home.copy()
+        pts = []
+        for u in np.linspace(0.0, 1.0, 9):
+            q[d] = qa + u * (qb - qa)
+            pts.append(self.adapter.at(q).d.site_xpos[sid].copy())
+        length = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        return rest_duration(length, REST_SPEED, shortest)
 
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
-        """(T, nq) frames through the key postures ``keys`` (per track)."""
+        """(T, nq) frames through the key postures ``keys`` (per track), on :meth:`times`."""
         sched = self.schedule
+        self.plan(keys)
         times = self.times()
         q = np.tile(sched.home, (len(times), 1))
         names = list(sched.track_joints)
@@ -89,7 +187,9 @@ class Motion:
         for ti, t in enumerate(names):
             d = sched.track_dofs[t]
             carried = self.carried(t, keys)
-            q[:, d], moving[:, ti] = track_curve(keys[t], times, d, sched.home, flattened, carried)
+            q[:, d], moving[:, ti] = track_curve(
+                keys[t], times, d, sched.home, flattened, carried, self.rests.get(t)
+            )
         if flattened:
             return self.flat_transpaths(q, times)
         return FrameSolver(self.adapter, self.fps).solve(q, times, moving, names, keys)
@@ -133,3 +233,37 @@ class Motion:
     def trills(self, q: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Pass 3: every trill added on top of the frames ``q`` (T, nq), in place."""
         return add_trills(self.adapter, q, times)
+
+    def misses(self, q: np.ndarray, times: np.ndarray, skip=()) -> dict[int, list]:
+        """Frame -> the (constraint, tracks it drives) of its blocks (but those in ``skip``,
+        block paths) outside their tolerance at that frame of ``q`` (T, nq)."""
+        sched, n = self.schedule, len(times)
+        spans = []
+        for b in sched.blocks:
+            if b.kind is not sc.BlockKind.CSTR or b.path in skip:
+                continue
+            r = frame_range(b.start, b.end, self.fps, n - self.lead_frames)
+            cons = [(dc.con, dc.tracks) for dc in sched.block_constraints(b) if dc.con is not None]
+            if cons and len(r):
+                spans.append((r.start + self.lead_frames, r.stop + self.lead_frames, cons))
+        out: dict[int, list] = {}
+        for f in range(n):
+            now = [c for f0, f1, cons in spans if f0 <= f < f1 for c in cons]
+            if not now:
+                continue
+            k = self.adapter.at(q[f])
+            bad = [(c, tr) for c, tr in now if not c.residual(k) <= c.tol]
+            if bad:
+                out[f] = bad
+        return out
+
+    def hold_constraints(self, q, times, keys, skip=()) -> np.ndarray:
+        """Every constraint held at every frame of its block: the frames of ``q`` (T, nq)
+        that leave one (a neighbouring trill, a per-frame solve's box) are solved again
+        with it (in place; ``skip``: paths of blocks whose own frames are not held, their
+        trill shakes them on purpose). :attr:`resolved` counts them."""
+        misses = self.misses(q, times, skip)
+        self.resolved = len(misses)
+        if misses and self.mode is Mode.MULTITRACK:
+            FrameSolver(self.adapter, self.fps).hold_frames(q, times, keys, misses)
+        return q

@@ -22,6 +22,7 @@ from azee_mj.timing import frame_range
 
 __all__ = [
     "ConstraintTrace",
+    "Finding",
     "Rollout",
     "SolveStats",
     "constraint_traces",
@@ -81,6 +82,41 @@ class ConstraintTrace:
 
 
 @dataclasses.dataclass(frozen=True)
+class Finding:
+    """What the realized motion does that a person would not, and where.
+
+    ``kind`` is ``speed`` (the score's timing makes a transition faster than the human
+    range: a wrist above 3 m/s, a joint above 25 rad/s) or ``constraint`` (frames of a block
+    where a constraint stays outside its tolerance after the realizer's repairs); ``block``
+    the score block it concerns; ``what`` the site, joint or constraint; ``value`` and
+    ``limit`` in ``unit``; ``start``, ``end`` [s] the rollout times of the frames concerned
+    and ``frames`` how many."""
+
+    kind: str
+    block: str
+    what: str
+    value: float
+    limit: float
+    unit: str
+    start: float
+    end: float
+    frames: int
+
+    def describe(self) -> str:
+        """One line, e.g. ``speed: WR_R 4.20 m/s (limit 3.00) in s2 at 1.10-1.30 s``."""
+        k, u = (1000.0, "mm") if self.unit == "m" else (1.0, self.unit)
+        if self.unit == "rad":
+            k, u = float(np.degrees(1.0)), "deg"
+        return (
+            f"{self.kind}: {self.what} {self.value * k:.2f} {u} (limit {self.limit * k:.2f}) "
+            f"in {self.block} at {self.start:.2f}-{self.end:.2f} s ({self.frames} frame(s))"
+        )
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
 class SolveStats:
     """IK work done for a rollout: problems solved, iterations, and wall times [s]."""
 
@@ -98,11 +134,15 @@ class Rollout:
     """A realized score.
 
     Attributes:
-      time: (T,) frame times [s], ``k / fps``.
+      time: (T,) frame times [s], ``k / fps``: the rollout's clock.
+      score_start: the rollout time [s] of the score's time 0: frames before it are the
+        lead-in from rest (0 without one). Schedule intervals and traces are on the
+        rollout's clock (the score's times plus ``score_start``).
       qpos: (T, nq) postures in ``signer.xml`` joint order.
       site_names: (S,) AZee site names; ``site_pos`` (T, S, 3) their positions [m].
       schedule: per track, the intervals blocks drive it.
       traces: residual of every place / orient / look constraint over its interval.
+      findings: what the motion does that a person would not (:class:`Finding`).
     """
 
     fps: float
@@ -114,6 +154,8 @@ class Rollout:
     schedule: Mapping[str, tuple[TrackInterval, ...]]
     traces: tuple[ConstraintTrace, ...]
     stats: SolveStats
+    score_start: float = 0.0
+    findings: tuple[Finding, ...] = ()
 
     def report(self) -> dict:
         """The JSON report: residuals per constraint and block, and timings."""
@@ -123,6 +165,7 @@ class Rollout:
             "mode": self.mode.value,
             "frames": len(self.time),
             "duration_s": float(self.time[-1]) if len(self.time) else 0.0,
+            "score_start_s": float(self.score_start),
             "constraints": [
                 {
                     "block": t.block,
@@ -137,6 +180,7 @@ class Rollout:
                 for t in self.traces
             ],
             "all_within_tolerance": bool(all(t.ok for t in self.traces)),
+            "findings": [f.as_dict() for f in self.findings],
             "schedule": {
                 k: [{"block": i.block, "start": i.start, "end": i.end} for i in v]
                 for k, v in self.schedule.items()
@@ -153,21 +197,30 @@ class Rollout:
 
 
 def constraint_traces(
-    schedule: Schedule, q: np.ndarray, times: np.ndarray, fps: float, reasons=None
+    schedule: Schedule,
+    q: np.ndarray,
+    times: np.ndarray,
+    fps: float,
+    reasons=None,
+    lead_frames: int = 0,
+    blocks=None,
 ) -> tuple[ConstraintTrace, ...]:
     """The residual of every place / orient / look constraint of ``schedule`` over the
-    frames ``q`` (T, nq) at ``times`` [s] inside its block; ``reasons`` (constraint label
-    -> why its key posture misses it) is said on the traces."""
+    frames ``q`` (T, nq) inside its block; ``reasons`` (constraint label -> why its key
+    posture misses it) is said on the traces. The score's time 0 is frame ``lead_frames``
+    (the traces' times are on the rollout's clock); ``blocks``: only these block paths."""
     reasons = reasons or {}
     solver, comp, out = schedule.solver, schedule.comp, []
+    shift = lead_frames / fps
     for b in schedule.blocks:
-        if b.kind is not sc.BlockKind.CSTR:
+        if b.kind is not sc.BlockKind.CSTR or (blocks is not None and b.path not in blocks):
             continue
         for c in b.constraints:
             ic = comp.constraint(c, f"{b.path}#{c.index}")
             if ic is None:
                 continue
-            span = frame_range(b.start, b.end, fps, len(times))
+            span = frame_range(b.start, b.end, fps, len(times) - lead_frames)
+            span = range(span.start + lead_frames, span.stop + lead_frames)
             vals = np.array([ic.residual(solver.at(q[f])) for f in span], float)
             unit = "m" if isinstance(ic, cn.Place) else "rad"
             kind = type(c).__name__.lower()
@@ -178,8 +231,8 @@ def constraint_traces(
                     kind,
                     ic.tol,
                     unit,
-                    b.start,
-                    b.end,
+                    b.start + shift,
+                    b.end + shift,
                     span.start,
                     vals,
                     len(times),

@@ -32,6 +32,7 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
+import dataclasses
 import time as _time
 from collections.abc import Callable, Mapping
 
@@ -40,6 +41,9 @@ import numpy as np
 from azee_mj import ik, mirror
 from azee_mj import score as sc
 from azee_mj.anatomy import ACROSS
+from azee_mj.blend import REST_HOLD
+from azee_mj.errors import AzeeError
+from azee_mj.findings import constraint_findings, speed_findings
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import LEAN_STEPS, RELAXING, KeyPoser
 from azee_mj.motion import Motion
@@ -54,6 +58,7 @@ from azee_mj.preferences import (
 )
 from azee_mj.rollout import (
     ConstraintTrace,
+    Finding,
     Rollout,
     SolveStats,
     constraint_traces,
@@ -76,6 +81,7 @@ __all__ = [
     "RELAXING",
     "UPRIGHT_TOL_DEG",
     "ConstraintTrace",
+    "Finding",
     "Mode",
     "Rollout",
     "SolveStats",
@@ -93,6 +99,9 @@ def realize(
     solver: ik.Solver | None = None,
     signer_map: SignerMap | None = None,
     progress: Callable[[float], None] | None = None,
+    rest: bool = True,
+    hold: float = REST_HOLD,
+    tempo: float = 1.0,
 ) -> Rollout:
     """Realize a score: the motion of the signer, frame ``k`` at ``k / fps`` [s].
 
@@ -104,13 +113,25 @@ def realize(
         :func:`~azee_mj.schedule.make_solver` for ``signer_map``).
       signer_map: the AZee names of the solver's signer (default: the bundled signer's).
       progress: called with the fraction done (0..1).
+      rest: come from rest before the first block (a lead-in timed from its distance, the
+        rollout's clock starting ``score_start`` seconds before the score's) and return to
+        rest ``hold`` [s] after each track's last block (multitrack). False: each track
+        starts in its first posture and keeps its last.
+      hold: how long a track holds its last posture before relaxing [s].
+      tempo: play the score this many times as fast (block times divided by it).
 
     Returns:
-      A :class:`Rollout`: ``qpos`` (T, nq), ``site_pos`` (T, S, 3), residual traces, stats.
+      A :class:`Rollout`: ``qpos`` (T, nq), ``site_pos`` (T, S, 3), residual traces,
+      findings, stats.
     """
     t_start = _time.perf_counter()
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
+    if not (np.isfinite(tempo) and 0.1 <= tempo <= 10.0):
+        raise AzeeError(f"tempo must be a number from 0.1 to 10, got {tempo!r}")
+    if not (np.isfinite(hold) and 0.0 <= hold <= 10.0):
+        raise AzeeError(f"the rest hold must be from 0 to 10 s, got {hold!r}")
+    score = score.at_tempo(tempo) if tempo != 1.0 else score
     mode = Mode(mode) if isinstance(mode, str) else mode
     fps = check_fps(fps, "fps")
     smap = signer_map or DEFAULT_MAP
@@ -125,23 +146,60 @@ def realize(
     keys = poser.key_postures()
     n_key = len(adapter.results)
     tick(0.4)
-    motion = Motion(adapter, mode, fps)
+    motion = Motion(adapter, mode, fps, rest, hold)
     q = motion.frames(keys)
     tick(0.8)
-    times = motion.times()
+    times, lead = motion.times(), motion.lead_frames
     own, reasons = sched, poser.reasons
     if flip:
         own = Schedule(score, solver, smap)
         reasons = {k: mirror.mirror_words(v) for k, v in reasons.items()}
-    # Residuals are those of the postures the blocks ask for: a trill is added on top.
-    traces = constraint_traces(own, flip(q) if flip else q, times, fps, reasons)
+    trilled = trilled_blocks(score)
+    # A trill moves its block's posture on purpose: its residuals are those before it.
+    shaken = constraint_traces(own, flip(q) if flip else q, times, fps, reasons, lead, trilled)
     q = motion.trills(q, times)
+    q = motion.hold_constraints(q, times, keys, trilled)
     if flip:
         q = flip(q)
+    rest_of = {b.path for b in own.blocks} - trilled
+    traces = constraint_traces(own, q, times, fps, reasons, lead, rest_of)
+    traces = tuple(sorted(shaken + traces, key=order_of(own)))
     site_pos = site_positions(solver, smap, q)
     tick(1.0)
+    rt = np.arange(len(times)) / fps
+    shift = lead / fps
+    intervals = {
+        t: tuple(dataclasses.replace(i, start=i.start + shift, end=i.end + shift) for i in v)
+        for t, v in own.intervals().items()
+    }
+    found = findings_of(solver, own, rt, q, site_pos, smap, intervals, shift, traces)
     stats = solve_stats(adapter.results, n_key, _time.perf_counter() - t_start)
-    return Rollout(fps, mode, times, q, tuple(smap.sites), site_pos, own.intervals(), traces, stats)
+    return Rollout(
+        fps, mode, rt, q, tuple(smap.sites), site_pos, intervals, traces, stats, shift, found
+    )
+
+
+def trilled_blocks(score: sc.Score) -> set[str]:
+    """Paths of the blocks with a trill (their posture is shaken on purpose)."""
+    return {b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)}
+
+
+def order_of(schedule: Schedule):
+    """Sort key of traces in the schedule's block order, then constraint index."""
+    rank = {b.path: i for i, b in enumerate(schedule.blocks)}
+    return lambda t: (rank.get(t.block, 0), t.index)
+
+
+def findings_of(solver, sched, rt, q, site_pos, smap, intervals, shift, traces):
+    """The rollout's findings: speeds over the human range and constraints left."""
+    m = solver.model
+    joints = {}
+    for track, names in sched.track_joints.items():
+        for j in names:
+            joints[j] = (track, m.jnt_qposadr[solver.joint_id(j)])
+    end = shift + sched.score.duration
+    out = speed_findings(rt, q, site_pos, list(smap.sites), joints, intervals, shift, end)
+    return tuple(out + constraint_findings(list(traces), rt))
 
 
 def score_traces(

@@ -12,6 +12,7 @@ from types import MappingProxyType
 from typing import Any, ClassVar
 
 from azee_mj.sites import DEFAULT_MAP, BoneMap, SignerMap
+from azee_mj.timing import exact_time
 
 FORMAT = "azee-score"
 VERSION = 1
@@ -387,6 +388,17 @@ class Score:
     def blocks(self) -> Iterator[Block]:
         """Every block, depth first (parents before children), with absolute times."""
         return self.root.blocks()
+
+    def at_tempo(self, tempo: float) -> Score:
+        """This score played ``tempo`` times as fast: every block's start and end [s]
+        divided by ``tempo`` (a trill keeps its frequency)."""
+
+        def scaled(b: Block) -> Block:
+            kids = tuple(scaled(c) for c in b.children)
+            start, end = exact_time(b.start / tempo), exact_time(b.end / tempo)
+            return dataclasses.replace(b, start=start, end=end, children=kids)
+
+        return dataclasses.replace(self, root=scaled(self.root))
 
     def block(self, path: str) -> Block:
         """The block with dotted path ``path`` (KeyError if none)."""

@@ -14,7 +14,7 @@ import multiprocessing
 import os
 import signal
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,19 +96,30 @@ def plan(scores: Sequence[Path], out_dir: Path, report_dir: Path | None = None) 
     return jobs
 
 
+def missed(rollout: Rollout) -> int:
+    """Constraints out of tolerance plus findings (what ``--strict`` fails on)."""
+    bad = sum(not t.ok for t in rollout.traces)
+    return bad + sum(f.kind != "constraint" for f in rollout.findings)
+
+
 def summary_lines(output: str | os.PathLike, rollout: Rollout, fps: float) -> tuple[str, ...]:
     """What ``azee-mj realize`` prints for a rollout written to ``output``: one line, then
-    why each missed constraint missed (the first five)."""
+    why each missed constraint missed (the first five), then the findings (the first
+    five)."""
     s = rollout.stats
     bad = [t for t in rollout.traces if not t.ok]
+    lead = f", the score from {rollout.score_start:.2f} s" if rollout.score_start else ""
     head = (
-        f"{output}: {len(rollout.time)} frames at {fps:g} fps, {s.problems} IK "
+        f"{output}: {len(rollout.time)} frames at {fps:g} fps{lead}, {s.problems} IK "
         f"problems ({s.iterations} iterations) in {s.total_time:.3f} s; "
         f"{len(rollout.traces) - len(bad)}/{len(rollout.traces)} constraints within "
         f"tolerance"
     )
     more = (f"  ... and {len(bad) - 5} more (see --report)",) if len(bad) > 5 else ()
-    return (head, *(f"  {t.describe()}" for t in bad[:5]), *more)
+    found = [f for f in rollout.findings if f.kind != "constraint"]
+    extra = (f"  ... and {len(found) - 5} more findings (see --report)",) if len(found) > 5 else ()
+    lines = [f"  finding: {f.describe()}" for f in found[:5]]
+    return (head, *(f"  {t.describe()}" for t in bad[:5]), *more, *lines, *extra)
 
 
 def read_score(
@@ -133,15 +144,23 @@ def realize_file(
     solver: Solver | None = None,
     lexicon: Iterable[str | os.PathLike] | Lexicon = (),
     progress: Callable[[float], None] | None = None,
+    motion: Mapping | None = None,
 ) -> Rollout:
     """Realize ``job.score`` and write its rollout (and report) atomically; the rollout.
-    Raises :class:`AzeeError` for a bad score or an output that may not be written."""
+    ``motion``: the realizer's ``rest``, ``hold`` and ``tempo`` (see
+    :func:`~azee_mj.timeline.realize`). Raises :class:`AzeeError` for a bad score or an
+    output that may not be written."""
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
     from azee_mj.timeline import realize
 
     rollout = realize(
-        read_score(job.score, lexicon), fps=fps, mode=mode, solver=solver, progress=progress
+        read_score(job.score, lexicon),
+        fps=fps,
+        mode=mode,
+        solver=solver,
+        progress=progress,
+        **(motion or {}),
     )
     save_rollout(job.output, rollout, inputs=(job.score,))
     if job.report is not None:
@@ -190,10 +209,12 @@ def _init_worker(lexicon: Sequence[str]) -> None:
     _prepare(lexicon)
 
 
-def _run(job: Job, fps: float, mode: str) -> Outcome:
+def _run(job: Job, fps: float, mode: str, motion: Mapping | None = None) -> Outcome:
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        rollout = realize_file(job, fps=fps, mode=mode, solver=_SOLVER, lexicon=_LEXICON)
+        rollout = realize_file(
+            job, fps=fps, mode=mode, solver=_SOLVER, lexicon=_LEXICON, motion=motion
+        )
     except AzeeError as e:
         msg = str(e)
         error = msg if msg.startswith(str(job.score)) else f"{job.score}: {msg}"
@@ -203,7 +224,7 @@ def _run(job: Job, fps: float, mode: str) -> Outcome:
     return Outcome(
         job,
         summary_lines(job.output, rollout, fps),
-        missed=sum(not t.ok for t in rollout.traces),
+        missed=missed(rollout),
         wall=time.perf_counter() - t0,
         cpu=time.process_time() - c0,
     )
@@ -224,6 +245,7 @@ def realize_many(
     workers: int | None = None,
     lexicon: Iterable[str | os.PathLike] = (),
     on_done: Callable[[Outcome, int], None] | None = None,
+    motion: Mapping | None = None,
 ) -> list[Outcome]:
     """Realize every job, ``workers`` processes at once (default :func:`usable_cores`;
     1 runs here, without a pool); ``.azee`` scores are compiled with the sign directories
@@ -248,7 +270,7 @@ def realize_many(
     if workers == 1:
         _prepare(lex)
         for i, job in enumerate(jobs):
-            finish(i, _run(job, fps, mode))
+            finish(i, _run(job, fps, mode, motion))
         return [done[i] for i in range(len(jobs))]
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
@@ -261,7 +283,7 @@ def realize_many(
     try:
         # Largest scores first, so that no long one starts last while the other workers idle.
         order = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i].score))
-        pending = {pool.submit(_run, jobs[i], fps, mode): i for i in order}
+        pending = {pool.submit(_run, jobs[i], fps, mode, motion): i for i in order}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for f in finished:

@@ -207,8 +207,10 @@ def track_curve(
     prev, prev_q = None, start
     for hold in holds:
         if prev is None and rest is not None:
-            lead = rest.lead or 0.0
-            w0, w1 = hold.start - lead, hold.start
+            w0, w1 = hold.start - (rest.lead or 0.0), hold.start
+            pins = [e for e in carried if e < w1 + EPS]
+            if pins and w1 > w0:  # no earlier than a carried hold ends, as any blend
+                w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
         else:
             w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
         _blend(out, blending, times, w0, w1, prev_q, hold.q)

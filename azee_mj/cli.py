@@ -2,7 +2,7 @@
 realize, check, preview, render, export, report.
 
 Exit status: 0 done; 1 a check found problems (``check``, or ``realize --strict`` with a
-constraint out of tolerance); 2 bad input (a score, rollout, option or output path; one
+constraint out of tolerance or a finding: a speed over the human range); 2 bad input (a score, rollout, option or output path; one
 message, no output file; when realizing several scores, any bad one, the others written);
 3 an internal error (a bug: one line asking for a report; ``--debug`` shows the
 traceback); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
@@ -186,7 +186,7 @@ def _cmd_check(args, run: _Run) -> int:
         from azee_mj.score import load_score
 
         score, solver = load_score(run.score_path(args.score, args.lexicon)), make_solver()
-        allowed = contact_pairs(score, rollout.time, solver)
+        allowed = contact_pairs(score, rollout.time, solver, rollout.score_start)
     report = check_poses(model, rollout.qpos, allowed=allowed)
     print(summary(report, rollout.fps))
     ok = report.clean
@@ -218,7 +218,7 @@ class _Progress:
 
 
 def _cmd_realize(args, run: _Run) -> int:
-    from azee_mj.batch import summary_lines
+    from azee_mj.batch import missed, summary_lines
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
     from azee_mj.score import load_score
@@ -226,6 +226,7 @@ def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
+    _motion(args)
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
     if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
@@ -244,14 +245,30 @@ def _cmd_realize(args, run: _Run) -> int:
 
         rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"))
     else:
-        rollout = realize(score, fps=args.fps, mode=args.mode, progress=_Progress("realize"))
+        rollout = realize(
+            score, fps=args.fps, mode=args.mode, progress=_Progress("realize"), **_motion(args)
+        )
     save_rollout(args.output, rollout, inputs=(path,))
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
     print("\n".join(summary_lines(args.output, rollout, args.fps)))
     if args.dynamics:
         print(rollout.summary())
-    return 1 if args.strict and any(not t.ok for t in rollout.traces) else 0
+    return 1 if args.strict and missed(rollout) else 0
+
+
+def _motion(args) -> dict:
+    """The realizer's motion options from ``--no-rest``, ``--rest-hold``, ``--tempo``
+    (checked here: a bad one is exit 2 before any work)."""
+    import math
+
+    from azee_mj.blend import REST_HOLD
+
+    hold = REST_HOLD if args.rest_hold is None else args.rest_hold
+    for opt, v, lo, hi in (("--tempo", args.tempo, 0.1, 10.0), ("--rest-hold", hold, 0, 10)):
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise AzeeError(f"{opt} must be a number from {lo:g} to {hi:g}, got {v:g}")
+    return {"rest": not args.no_rest, "hold": hold, "tempo": args.tempo}
 
 
 def _with_blinks(score, args):
@@ -322,7 +339,13 @@ def _realize_many(args) -> int:
         bar(n / len(jobs))
 
     outcomes = realize_many(
-        jobs, fps=args.fps, mode=args.mode, workers=args.jobs, lexicon=lexicon, on_done=done
+        jobs,
+        fps=args.fps,
+        mode=args.mode,
+        workers=args.jobs,
+        lexicon=lexicon,
+        on_done=done,
+        motion=_motion(args),
     )
     if not all(o.ok for o in outcomes):
         return EXIT_BAD_INPUT
@@ -478,7 +501,27 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--strict",
         action="store_true",
-        help="exit 1 if any constraint is not met (default: 0, and say why)",
+        help="exit 1 if any constraint is not met or the motion leaves the human range "
+        "(a finding; default: 0, and say why)",
+    )
+    r.add_argument(
+        "--no-rest",
+        action="store_true",
+        help="no lead-in from rest nor return to rest: start in the first posture, keep the last",
+    )
+    r.add_argument(
+        "--rest-hold",
+        type=float,
+        metavar="S",
+        help="seconds a hand, the head or the trunk holds its last posture before relaxing "
+        "to rest (default 0.3)",
+    )
+    r.add_argument(
+        "--tempo",
+        type=float,
+        default=1.0,
+        metavar="F",
+        help="play the score F times as fast (0.5: half speed; default 1)",
     )
     r.add_argument(
         "--jobs", type=int, help="processes for several scores (default: one per usable core)"

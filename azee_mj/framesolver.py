@@ -268,7 +268,8 @@ class FrameSolver:
             if tr not in tracks or goal[i] < 0:
                 continue
             d = self.schedule.track_dofs[tr]
-            room = self._reach[goal[i]] - self._reach[f] if goal[i] > f else 0.0
+            n = goal[i] - f
+            room = self._reach[goal[i]] - self._reach[f] if len(self._reach) > goal[i] else n * step
             lo[d] = np.maximum(lo[d], curve[goal[i]][d] - room)
             hi[d] = np.minimum(hi[d], curve[goal[i]][d] + room)
             if f > 0:  # and a step at most from the frame before

@@ -24,7 +24,7 @@ from azee_mj.errors import AzeeError
 from azee_mj.kinematics import Unit
 from azee_mj.model import load_model
 from azee_mj.rollout_io import load_rollout
-from azee_mj.schedule import Compiler, TrackInterval, make_solver, schedule
+from azee_mj.schedule import Compiler, TrackInterval, make_solver, schedule, shifted
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timeline import realize
 from azee_mj.timing import DEFAULT_FPS
@@ -54,6 +54,8 @@ class Clip:
       schedule: per track, the intervals blocks drive it (empty without a score).
       score: the realized score, or None (then no targets are drawn).
       name: a label (the input file's stem).
+      score_start: the time [s] of the score's time 0 on the clip's clock (the lead-in from
+        rest before it); ``schedule`` is on the clip's clock.
     """
 
     time: np.ndarray
@@ -62,6 +64,7 @@ class Clip:
     schedule: Mapping[str, tuple[TrackInterval, ...]]
     score: sc.Score | None = None
     name: str = ""
+    score_start: float = 0.0
 
     @property
     def duration(self) -> float:
@@ -71,7 +74,8 @@ class Clip:
     @classmethod
     def from_rollout(cls, rollout, score: sc.Score | None = None, name: str = "") -> Clip:
         """A clip of a :class:`~azee_mj.timeline.Rollout`."""
-        return cls(rollout.time, rollout.qpos, float(rollout.fps), rollout.schedule, score, name)
+        r = rollout
+        return cls(r.time, r.qpos, float(r.fps), r.schedule, score, name, float(r.score_start))
 
     def frame_at(self, t: float) -> int:
         """Index of the frame nearest to time ``t`` [s]."""
@@ -134,8 +138,8 @@ def load_clip(
         )
     r = load_rollout(path, load_model().nq)
     given = sc.load_score(Path(score)) if score else None
-    sched = schedule_of(given) if given is not None else {}
-    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem)
+    sched = shifted(schedule_of(given), r.score_start) if given is not None else {}
+    return Clip(r.time, r.qpos, r.fps, sched, given, path.stem, r.score_start)
 
 
 # ---------------------------------------------------------------------------------------
@@ -223,7 +227,7 @@ def markers(
         s.data.qpos[:] = q
         mujoco.mj_kinematics(s.model, s.data)
         kin = s.kinematics()
-        for x in targets.active(float(clip.time[frame])):
+        for x in targets.active(float(clip.time[frame]) - clip.score_start):
             c = x.con
             res = c.residual(kin)
             bad = res > c.tol

@@ -683,6 +683,8 @@ def simulate(
     t0 = _time.perf_counter()
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
+    # the score's blocks on the rollout's clock (its lead-in from rest comes first)
+    score = score.shifted(rollout.score_start) if rollout.score_start else score
     smap = signer_map or DEFAULT_MAP
     score_ties = ties(score, smap)
     settings = dataclasses.replace(settings, timestep=frame_step(rollout.fps, settings.timestep))
@@ -810,6 +812,8 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
         tracking_joint=np.abs(traj.qpos - rollout.qpos).max(axis=1),
         tie_force=traj.tie_force,
         timestep=ref.dt,
+        score_start=rollout.score_start,
+        findings=rollout.findings,
         sim_seconds=seconds,
         clipped=clipped,
     )

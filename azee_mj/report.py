@@ -140,7 +140,13 @@ def fig_timeline(r: Realization):
                 clip_on=True,
             )
     ax.set_yticks(range(len(tracks)), list(reversed(tracks)))
-    ax.set_xlim(0, r.score.duration)
+    ro = r.rollout
+    end = float(ro.time[-1]) if len(ro.time) else r.score.duration
+    ax.set_xlim(0, max(end, ro.score_start + r.score.duration))
+    # the lead-in from rest and the return to rest: the realizer's time, not the score's
+    for a, b in ((0.0, ro.score_start), (ro.score_start + r.score.duration, end)):
+        if b > a:
+            ax.axvspan(a, b, color="0.9", zorder=0)
     ax.set_xlabel("time [s]")
     ax.set_title(f"{root}: blocks per articulator track")
     handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in _KIND_COLOR.values()]
@@ -296,6 +302,8 @@ def _html(r: Realization, images: dict[str, bytes]) -> str:
             + "</tr>"
         )
     n_ok = sum(t.ok for t in ro.traces)
+    found = "".join(f"<li>{html.escape(f.describe())}</li>" for f in ro.findings)
+    found = f"<h2>Findings</h2>\n<ul>{found}</ul>" if found else "<p>No findings.</p>"
     figs = "\n".join(
         f'<h2>{title}</h2>\n<img alt="{key}" src="data:image/png;base64,'
         f'{base64.b64encode(images[key]).decode()}">'
@@ -311,7 +319,10 @@ th{{background:#eee}}img{{max-width:100%}}</style></head><body>
 <p>{len(ro.time)} frames at {ro.fps:g} fps ({ro.time[-1]:.3f} s), mode {ro.mode.value};
 {s.problems} IK problems ({s.key_problems} key postures), {s.iterations} iterations,
 {s.not_converged} not converged; solve {s.solve_time * 1000:.1f} ms, total
-{s.total_time * 1000:.1f} ms; {n_ok}/{len(ro.traces)} constraints within tolerance.</p>
+{s.total_time * 1000:.1f} ms; {n_ok}/{len(ro.traces)} constraints within tolerance.
+The score starts at {ro.score_start:.3f} s of the rollout (before it: the lead-in from
+rest); block times below are the score's.</p>
+{found}
 <h2>Blocks</h2>
 <table><tr><th>block</th><th>kind</th><th>start [s]</th><th>end [s]</th><th>content</th>
 <th>worst residual</th></tr>

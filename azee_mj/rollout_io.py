@@ -13,7 +13,9 @@ no traces and zero stats. A rollout of the physics mode
 ``torque_peak`` (T, nu), ``torque_limit`` (nu,), ``effort``, ``energy``, ``tracking_site``,
 ``tracking_joint`` and ``tie_force`` (T,) and ``timestep``, and loads back as one. The solve times
 are not stored (they read 0 after loading), so that a file depends only on the score, the
-options and the package version.
+options and the package version. ``score_start`` (the rollout time [s] of the score's time 0:
+the lead-in from rest lies before it) reads 0 and ``findings`` empty when absent (files
+written before them).
 
 :func:`load_rollout` validates everything it reads (names, shapes, dtypes, finite values,
 fps, sizes announced by array headers before reading them) and raises
@@ -32,7 +34,7 @@ from azee_mj.errors import InputFileError, shorten
 from azee_mj.files import save_npz
 from azee_mj.physics import DynamicRollout
 from azee_mj.schedule import TrackInterval
-from azee_mj.timeline import ConstraintTrace, Mode, Rollout, SolveStats
+from azee_mj.timeline import ConstraintTrace, Finding, Mode, Rollout, SolveStats
 from azee_mj.timing import MAX_FPS, MAX_FRAMES, MIN_FPS
 
 #: Arrays every rollout file holds.
@@ -73,6 +75,13 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
         # and options give the same bytes in any process
         "stats": np.array([float(getattr(s, k)) if "time" not in k else 0.0 for k in _STATS]),
         "stats_iterations": np.asarray(s.per_problem_iterations, dtype=np.int64),
+        "score_start": np.array(float(r.score_start)),
+        "finding_text": np.array(
+            [[f.kind, f.block, f.what, f.unit] for f in r.findings], dtype=str
+        ).reshape(len(r.findings), 4),
+        "finding_values": np.array(
+            [[f.value, f.limit, f.start, f.end, f.frames] for f in r.findings], dtype=float
+        ).reshape(len(r.findings), 5),
     }
 
 
@@ -267,6 +276,12 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         float(st[5]),
         its.astype(np.int64, copy=False) if np.isfinite(its).all() else np.zeros(0, np.int64),
     )
+    start = numeric("score_start") if "score_start" in a else np.zeros(())
+    if start.size != 1 or not (
+        np.isfinite(start).all() and 0.0 <= float(start.reshape(())) < T / fps
+    ):
+        raise bad("score_start must be one time [s] within the rollout")
+    findings = _findings(a, numeric, bad) if "finding_text" in a else []
     mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
     if mode_s not in {m.value for m in Mode}:
         raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
@@ -280,8 +295,30 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         {k: tuple(v) for k, v in schedule.items()},
         tuple(traces),
         stats,
+        float(start.reshape(())),
+        tuple(findings),
     )
     return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
+
+
+def _findings(a, numeric, bad) -> list[Finding]:
+    text, vals = a["finding_text"], numeric("finding_values", 2)
+    if text.dtype.kind != "U" or text.ndim != 2 or text.shape[1:] != (4,):
+        raise bad("finding_text must be (N, 4) text")
+    if vals.shape != (len(text), 5) or not np.isfinite(vals).all():
+        raise bad("finding_values must be (N, 5) finite numbers, one row per finding")
+    return [
+        Finding(
+            *(str(x) for x in t[:3]),
+            float(v[0]),
+            float(v[1]),
+            str(t[3]),
+            float(v[2]),
+            float(v[3]),
+            int(v[4]),
+        )
+        for t, v in zip(text, vals)
+    ]
 
 
 def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:

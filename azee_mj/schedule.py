@@ -409,6 +409,19 @@ class Schedule:
         return self._moved_cache[key]
 
 
+def shifted(
+    intervals: Mapping[str, tuple[TrackInterval, ...]], by: float
+) -> dict[str, tuple[TrackInterval, ...]]:
+    """``intervals`` (per track) moved ``by`` seconds later: a score's schedule on the clock of
+    a rollout whose score starts at ``by`` [s]."""
+    if not by:
+        return dict(intervals)
+    return {
+        t: tuple(dataclasses.replace(i, start=i.start + by, end=i.end + by) for i in v)
+        for t, v in intervals.items()
+    }
+
+
 def schedule(
     score: sc.Score | str, solver: ik.Solver | None = None
 ) -> dict[str, tuple[TrackInterval, ...]]:
@@ -419,15 +432,21 @@ def schedule(
 
 
 def contact_pairs(
-    score: sc.Score | str | Mapping, times: np.ndarray, solver: ik.Solver | None = None
+    score: sc.Score | str | Mapping,
+    times: np.ndarray,
+    solver: ik.Solver | None = None,
+    score_start: float = 0.0,
 ) -> dict[int, frozenset[tuple[str, str]]]:
-    """Frame -> body-name pairs that a contact constraint active then brings together."""
+    """Frame -> body-name pairs that a contact constraint active then brings together, on
+    frames at ``times`` [s] (a rollout's clock, the score's time 0 at ``score_start``)."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     r = Schedule(score, solver or make_solver())
     out: dict[int, set[tuple[str, str]]] = {}
     for w in r.contacts:
         fps = (len(times) - 1) / times[-1] if len(times) > 1 and times[-1] > 0 else 1.0
-        for f in frame_range(w.start, w.end, fps, len(times)):
+        lead = round(score_start * fps)
+        for f in frame_range(w.start, w.end, fps, len(times) - lead):
+            f += lead
             out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
     return {f: frozenset(v) for f, v in out.items()}

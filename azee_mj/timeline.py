@@ -32,7 +32,6 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
-import dataclasses
 import time as _time
 from collections.abc import Callable, Mapping
 
@@ -65,7 +64,7 @@ from azee_mj.rollout import (
     site_positions,
     solve_stats,
 )
-from azee_mj.schedule import Mode, Schedule, make_solver
+from azee_mj.schedule import Mode, Schedule, make_solver, shifted
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timing import check_fps
 
@@ -168,10 +167,7 @@ def realize(
     tick(1.0)
     rt = np.arange(len(times)) / fps
     shift = lead / fps
-    intervals = {
-        t: tuple(dataclasses.replace(i, start=i.start + shift, end=i.end + shift) for i in v)
-        for t, v in own.intervals().items()
-    }
+    intervals = shifted(own.intervals(), shift)
     found = findings_of(solver, own, rt, q, site_pos, smap, intervals, shift, traces)
     stats = solve_stats(adapter.results, n_key, _time.perf_counter() - t_start)
     return Rollout(
@@ -203,13 +199,20 @@ def findings_of(solver, sched, rt, q, site_pos, smap, intervals, shift, traces):
 
 
 def score_traces(
-    score: sc.Score | str, qpos: np.ndarray, fps: float, solver: ik.Solver | None = None
+    score: sc.Score | str,
+    qpos: np.ndarray,
+    fps: float,
+    solver: ik.Solver | None = None,
+    score_start: float = 0.0,
 ) -> tuple[ConstraintTrace, ...]:
-    """Residual traces of ``score``'s constraints on given frames ``qpos`` (T, nq)."""
+    """Residual traces of ``score``'s constraints on given frames ``qpos`` (T, nq), the
+    score's time 0 at ``score_start`` [s] of their clock."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     sched = Schedule(score, solver or make_solver())
-    return constraint_traces(sched, np.asarray(qpos, float), np.arange(len(qpos)) / fps, fps)
+    q = np.asarray(qpos, float)
+    lead = round(score_start * fps)
+    return constraint_traces(sched, q, np.arange(len(q)) / fps, fps, lead_frames=lead)
 
 
 def residual_summary(
@@ -220,12 +223,9 @@ def residual_summary(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     # A trill moves its block's posture on purpose: its block's residuals are not checked.
-    trilled = {
-        b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)
-    }
-    traces = [
-        t for t in score_traces(score, rollout.qpos, rollout.fps, solver) if t.block not in trilled
-    ]
+    trilled = trilled_blocks(score)
+    every = score_traces(score, rollout.qpos, rollout.fps, solver, rollout.score_start)
+    traces = [t for t in every if t.block not in trilled]
     bad = [t for t in traces if not t.ok]
     lines = [
         f"{len(traces) - len(bad)}/{len(traces)} constraints within tolerance"

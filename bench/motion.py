@@ -1,14 +1,18 @@
 """Motion a signer makes: speeds and smoothness of every hand movement of the realized examples.
 
     python bench/motion.py [--label NAME] [--plot PATH] [--examples a,b] [--no-sentence]
+                           [--scores DIR]
 
 Realizes every bundled example and the 10-sign sentence of ``bench/realize.py`` at 50 fps
 and measures, with :mod:`azee_mj.movement`, each wrist's movements (a movement runs between
 two pauses; see ``movement.segments``): duration, path length, peak and mean speed, SPARC,
 LDLJ, speed peaks and the two-thirds power-law exponent on curved paths. Each movement is
 labelled ``lead-in`` (it ends by the first block's start), ``retraction`` (it starts after
-the last block's end) or ``sign``. Per rollout: the frames at which a constraint active in
-its block is outside its tolerance, and the fastest joint [rad/s].
+the last block's end), ``relax`` (its arm has no further block: the realizer's return to
+rest) or ``sign``; the first three are timed by the realizer, the last by the score. Per
+rollout: the frames at which a constraint active in its block is outside its tolerance, the
+fastest joint [rad/s] (overall and where the realizer chose the timing) and the findings.
+``--scores DIR`` adds every ``*.json`` score of a folder (e.g. ``bench/data/motion``).
 
 Results go to ``bench/results/motion.json`` (or ``motion-NAME.json``), so that two versions
 of the realizer sit side by side: run it once per version and compare the files. ``--plot``
@@ -45,20 +49,31 @@ WRISTS = ("WR_R", "WR_L")
 WRIST_MAX, JOINT_MAX, SPARC_RANGE = 3.0, 25.0, (-1.6, -1.35)
 
 
-def scores(names: list[str], with_sentence: bool) -> dict[str, dict]:
+def scores(names: list[str], with_sentence: bool, extra: Path | None = None) -> dict[str, dict]:
     out = {n: json.loads((ROOT / "examples" / f"{n}.json").read_text()) for n in names}
     if with_sentence:
         out["sentence-10"] = sentence((SIGNS * 2)[:10])
+    for p in sorted(extra.glob("*.json")) if extra else ():
+        out[p.stem] = json.loads(p.read_text())
     return out
 
 
-def label(m: mv.Movement, t: np.ndarray, first_start: float, last_end: float) -> str:
+def label(
+    m: mv.Movement, t: np.ndarray, first_start: float, last_end: float, arm_end: float
+) -> str:
     slack = 2.0 / FPS  # a movement comes to rest within two frames of its block
     if t[m.last] <= first_start + slack:
         return "lead-in"
     if t[m.first] >= last_end - slack:
         return "retraction"
+    if t[m.first] >= arm_end - slack:
+        return "relax"
     return "sign"
+
+
+def chosen_frames(r, first: float, last: float) -> np.ndarray:
+    """Frames whose timing the realizer chose: before the first block, after the last."""
+    return (r.time < first - 1e-9) | (r.time > last + 1e-9)
 
 
 def leaving_frames(rollout) -> int:
@@ -79,22 +94,30 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
     for site in WRISTS:
         pos = r.site_pos[:, r.site_names.index(site)]
         profiles[site] = mv.speed(pos, FPS)
+        arm = r.schedule.get(f"arm_{site[-1]}", ())
+        arm_end = max((i.end for i in arm), default=first)
         for m in mv.movements(pos, FPS):
             rec = {
                 "site": site,
-                "phase": label(m, r.time, first, last),
+                "phase": label(m, r.time, first, last, arm_end),
                 "t0": float(r.time[m.first]),
                 "t1": float(r.time[m.last]),
             }
             rec.update({k: v for k, v in vars(m).items() if k not in ("first", "last")})
             moves.append(rec)
-    joint = float(np.abs(np.diff(r.qpos, axis=0)).max() * FPS) if len(r.time) > 1 else 0.0
+    step = np.abs(np.diff(r.qpos, axis=0)).max(axis=1) * FPS if len(r.time) > 1 else np.zeros(1)
+    joint = float(step.max())
+    own = chosen_frames(r, first, last)
+    own = own[1:] | own[:-1] if len(own) > 1 else own
     rec = {
         "name": name,
         "duration_s": float(r.time[-1]),
         "frames": len(r.time),
+        "score_start": float(getattr(r, "score_start", 0.0)),
         "leaving_frames": leaving_frames(r),
         "max_joint_speed": joint,
+        "max_joint_speed_chosen": float(step[own].max()) if own.any() else 0.0,
+        "findings": [f.describe() for f in getattr(r, "findings", ())],
         "peak_wrist_speed": max((m["peak_speed"] for m in moves), default=0.0),
         "movements": moves,
     }
@@ -114,6 +137,9 @@ def summary(recs: list[dict]) -> dict:
         "chosen_sparc_out": sum(not SPARC_RANGE[0] <= m["sparc"] <= SPARC_RANGE[1] for m in chosen),
         "leaving_frames": sum(r["leaving_frames"] for r in recs),
         "max_joint_speed": max(r["max_joint_speed"] for r in recs),
+        "max_joint_speed_chosen": max(r.get("max_joint_speed_chosen", 0.0) for r in recs),
+        "chosen_peak_wrist": max((m["peak_speed"] for m in chosen), default=0.0),
+        "findings": sum(len(r.get("findings", ())) for r in recs),
     }
 
 
@@ -162,6 +188,7 @@ def main(argv=None) -> int:
     ap.add_argument("--plot", type=Path, help="a PNG of the wrist speed profiles")
     ap.add_argument("--examples", help="comma-separated example names (default: all)")
     ap.add_argument("--no-sentence", action="store_true", help="skip the 10-sign sentence")
+    ap.add_argument("--scores", type=Path, help="also every *.json score of this folder")
     a = ap.parse_args(argv)
     names = (
         a.examples.split(",")
@@ -169,7 +196,7 @@ def main(argv=None) -> int:
         else sorted(p.stem for p in (ROOT / "examples").glob("*.json"))
     )
     recs, profiles = [], {}
-    for name, s in scores(names, not a.no_sentence).items():
+    for name, s in scores(names, not a.no_sentence, a.scores).items():
         rec, prof = measure(name, s)
         recs.append(rec)
         profiles[name] = prof

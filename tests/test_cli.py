@@ -65,12 +65,17 @@ def test_realize_writes_a_rollout_and_a_report(tmp_path, capsys):
     )
     assert "3/3 constraints within tolerance" in capsys.readouterr().out
     with np.load(out, allow_pickle=False) as z:
-        assert z["qpos"].shape == (31, load_model().nq)
-        assert z["time"][-1] == pytest.approx(1.2)
+        T, start = len(z["time"]), float(z["score_start"])
+        # the lead-in from rest before the score's 1.2 s, the return to rest after
+        assert start > 0.0 and z["time"][-1] > start + 1.2
+        assert z["qpos"].shape == (T, load_model().nq)
+        np.testing.assert_allclose(z["time"], np.arange(T) / 25.0)
         assert float(z["fps"]) == 25.0
-        assert z["site_pos"].shape == (31, len(DEFAULT_MAP.sites), 3)
+        assert z["site_pos"].shape == (T, len(DEFAULT_MAP.sites), 3)
         assert list(z["site_names"]) == list(DEFAULT_MAP.sites)
     report = json.loads(rep.read_text())
+    assert report["score_start_s"] == pytest.approx(start)
+    assert report["findings"] == []
     assert report["all_within_tolerance"] is True
     assert {c["block"] for c in report["constraints"]} == {"GOOD.K1", "GOOD.K2"}
     assert report["stats"]["ik_problems"] > 0
@@ -362,7 +367,8 @@ def test_realize_many_follows_the_output_rule_before_any_work(tmp_path, capsys):
 
 def test_realize_one_score_to_a_directory(tmp_path, capsys):
     (out,) = _dirs(tmp_path, "out")
-    assert main(["realize", str(DATA / "good.json"), "-o", f"{out}/", "--fps", "25"]) == 0
+    args = ["realize", str(DATA / "good.json"), "-o", f"{out}/", "--fps", "25", "--no-rest"]
+    assert main(args) == 0  # no rest: the score's 1.2 s alone
     assert capsys.readouterr().out.startswith(f"{out / 'good.npz'}: 31 frames at 25 fps, ")
     assert [p.name for p in out.iterdir()] == ["good.npz"]
 

@@ -24,7 +24,7 @@ from azee_mj.export.csv import columns
 from azee_mj.export.gltf import srgb_to_linear
 from azee_mj.export.player import camera_pose
 from azee_mj.model import SCENE_PATH
-from azee_mj.schedule import schedule
+from azee_mj.schedule import schedule, shifted
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP, FACE_JOINTS
 from azee_mj.timeline import realize
@@ -406,8 +406,10 @@ def test_cli_exports_a_score_and_a_rollout_with_its_score(tmp_path, capsys):
     page = tmp_path / "good.html"
     assert main(["export", str(npz), "--score", str(DATA / "good.json"), "-o", str(page)]) == 0
     info = _page_info(page.read_text())
-    assert info["frames"] == 31 and info["fps"] == 25.0
-    want = mo.schedule_tuples(schedule(load_score(DATA / "good.json")))
+    with np.load(npz) as z:  # the score's schedule on the rollout's clock (after the lead-in)
+        frames, start = len(z["time"]), float(z["score_start"])
+    assert info["frames"] == frames and info["fps"] == 25.0
+    want = mo.schedule_tuples(shifted(schedule(load_score(DATA / "good.json")), start))
     assert {k: [tuple(i) for i in v] for k, v in info["schedule"].items()} == {
         k: list(v) for k, v in want.items()
     }
@@ -604,16 +606,17 @@ def test_player_controls_pause_play_speed_and_seek(browser, page):
 
 
 @pytest.mark.extra("export")
-def test_player_shows_the_blocks_of_the_current_time(browser, page, realized):
-    browser.open(_url(page, "t=1.0&paused=1"), READY)
+def test_player_shows_the_blocks_of_the_current_time(browser, page, realized, rollout):
+    t = round(rollout.score_start + 1.0, 2)  # 1 s into the score, after the lead-in
+    browser.open(_url(page, f"t={t}&paused=1"), READY)
     shown = browser.evaluate("document.getElementById('blocks').textContent")
     active = {
-        track: [b for b, s, e in ivs if s <= 1.0 < e] for track, ivs in realized.schedule.items()
+        track: [b for b, s, e in ivs if s <= t < e] for track, ivs in realized.schedule.items()
     }
     want = [f"{track.ljust(7)} {', '.join(bs)}" for track, bs in active.items() if bs]
     assert len(want) >= 3 and shown.splitlines() == want
     assert browser.evaluate("document.getElementById('clock').textContent") == (
-        f"1.00 / {(len(realized.qpos) - 1) / realized.fps:.2f} s"
+        f"{t:.2f} / {(len(realized.qpos) - 1) / realized.fps:.2f} s"
     )
     assert browser.errors() == []
 
@@ -676,7 +679,9 @@ def test_cli_export_takes_azee(tmp_path, capsys):
     assert main(["realize", str(src), "-o", str(rollout), "--fps", "10"]) == 0
     page = tmp_path / "five.html"
     assert main(["export", str(rollout), "--score", str(src), "-o", str(page)]) == 0
-    want = mo.schedule_tuples(schedule(load_score(compile_text(":nb-5"))))
+    with np.load(rollout) as z:
+        start = float(z["score_start"])
+    want = mo.schedule_tuples(shifted(schedule(load_score(compile_text(":nb-5"))), start))
     assert {
         k: [tuple(i) for i in v] for k, v in _page_info(page.read_text())["schedule"].items()
     } == {k: list(v) for k, v in want.items()}

@@ -211,7 +211,7 @@ def test_recruited_trunk_returns_to_neutral(solver):
     rollout = timeline.realize(score, solver=solver)
     spine = [solver.joint_id(j) for j in DEFAULT_MAP.tracks["spine"]]
     assert all(t.ok for t in rollout.traces)
-    assert np.abs(rollout.qpos[rollout.time < 0.8][:, spine]).max() > 0.05
+    assert np.abs(rollout.qpos[rollout.time - rollout.score_start < 0.8][:, spine]).max() > 0.05
     np.testing.assert_allclose(rollout.qpos[-1, spine], solver.natural[spine], atol=1e-9)
 
 
@@ -246,7 +246,7 @@ def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
     }
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
-    key = rollout.qpos[np.argmin(np.abs(rollout.time - 0.5))]
+    key = rollout.qpos[np.argmin(np.abs(rollout.time - rollout.score_start - 0.5))]
     spine = [solver.joint_id(j) for j in DEFAULT_MAP.tracks["spine"]]
     assert np.abs(key[spine] - solver.natural[spine]).max() > 0.05
     q = key.copy()

@@ -77,7 +77,7 @@ def held_posture(solver, site, at, strong, weak=None):
     touch = [t for t in ro.traces if t.block == "C.TOUCH"]
     assert len(touch) == 1
     assert touch[0].ok, touch[0].describe()
-    return ro.qpos[int(np.flatnonzero(ro.time >= 0.5 * sum(HOLD) - 1e-9)[0])]
+    return ro.qpos[int(np.flatnonzero(ro.time - ro.score_start >= 0.5 * sum(HOLD) - 1e-9)[0])]
 
 
 @pytest.mark.parametrize("site, at, strong, weak", CASES)

@@ -33,7 +33,10 @@ def _dofs(solver, track):
 
 
 def _frames(rollout, start, end):
-    return np.flatnonzero((rollout.time >= start - 1e-9) & (rollout.time < end - 1e-9))
+    """Frames inside ``[start, end)`` of the score's time (the rollout's clock runs
+    ``score_start`` ahead: the lead-in from rest comes first)."""
+    t = rollout.time - rollout.score_start
+    return np.flatnonzero((t >= start - 1e-9) & (t < end - 1e-9))
 
 
 def _site(rollout, name):
@@ -41,10 +44,13 @@ def _site(rollout, name):
 
 
 def test_rollout_shapes_and_time_line(kinds, solver):
-    assert kinds.time.shape == (151,)
-    np.testing.assert_array_equal(kinds.time, np.arange(151) / 50.0)
-    assert kinds.qpos.shape == (151, solver.model.nq)
-    assert kinds.site_pos.shape == (151, len(DEFAULT_MAP.sites), 3)
+    T = len(kinds.time)
+    np.testing.assert_array_equal(kinds.time, np.arange(T) / 50.0)
+    # the score's 3 s start on a frame, after the lead-in, and the return to rest follows
+    assert kinds.score_start * 50.0 == pytest.approx(round(kinds.score_start * 50.0), abs=1e-9)
+    assert kinds.time[-1] > kinds.score_start + 3.0
+    assert kinds.qpos.shape == (T, solver.model.nq)
+    assert kinds.site_pos.shape == (T, len(DEFAULT_MAP.sites), 3)
     assert np.all(np.isfinite(kinds.qpos))
 
 
@@ -72,7 +78,7 @@ def test_no_joint_leaves_its_range_or_moves_faster_than_25_rad_s(kinds, solver):
 
 
 def test_no_penetration_at_any_frame(kinds, solver):
-    allowed = contact_pairs(DATA / "kinds.json", kinds.time)
+    allowed = contact_pairs(DATA / "kinds.json", kinds.time, score_start=kinds.score_start)
     report = check_poses(solver.model, kinds.qpos, allowed=allowed)
     assert report.clean, report.penetrations[:3]
 
@@ -131,7 +137,7 @@ def test_transpath_circle_turns_about_its_centre(kinds, solver):
 def test_site_trill_oscillates_at_its_amplitude_and_frequency(kinds):
     f = _frames(kinds, 0.9, 1.4)
     z = _site(kinds, "M_TIP_R")[f, 2]
-    t = kinds.time[f] - 0.9
+    t = kinds.time[f] - kinds.score_start - 0.9
     fit = np.linalg.lstsq(np.c_[np.sin(2 * np.pi * 4 * t), np.ones_like(t)], z, rcond=None)[0]
     assert fit[0] == pytest.approx(0.01, rel=0.15)
 
@@ -234,7 +240,9 @@ def _two_track_score():
 
 def test_one_hand_moves_while_the_other_holds_still(solver):
     multi = timeline.realize(_two_track_score(), solver=solver)
-    left = multi.qpos[:, _dofs(solver, "arm_L")]
+    # STILL holds the left arm over the whole score: still from the score's start to its
+    # end (it comes from rest before and returns to rest after)
+    left = multi.qpos[_frames(multi, 0.0, 2.0)][:, _dofs(solver, "arm_L")]
     assert np.abs(left - left[0]).max() < 1e-9
     right = multi.qpos[:, _dofs(solver, "arm_R")]
     assert np.abs(np.diff(right, axis=0)).max() > 0.01
@@ -287,12 +295,14 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     tracks = {k for k, v in rollout.schedule.items() if v}
     assert {"arm_R", "arm_L", "hand_R", "hand_L"} <= tracks and "head" not in tracks
     assert [t.describe() for t in rollout.traces if not t.ok] == []
-    gap = _site(rollout, "I_TIP_R")[-1] - _site(rollout, "I_TIP_L")[-1]
+    inside = _frames(rollout, 0.0, 0.6)  # the block's frames, after the lead-in from rest
+    last = inside[-1]
+    gap = _site(rollout, "I_TIP_R")[last] - _site(rollout, "I_TIP_L")[last]
     np.testing.assert_allclose(gap, [0.0, -0.0136, 0.0], atol=1e-3)
     head = _dofs(solver, "head")
     assert np.abs(rollout.qpos[:, head] - rollout.qpos[0, head]).max() == 0.0
-    allowed = contact_pairs(load_score(score), rollout.time, solver)
-    assert set(allowed) == set(range(len(rollout.time) - 1))
+    allowed = contact_pairs(load_score(score), rollout.time, solver, rollout.score_start)
+    assert set(allowed) == set(inside.tolist())
     # The two hands touch as parts: any body of one hand with any body of the other.
     pairs = {tuple(sorted(p)) for v in allowed.values() for p in v}
     m = solver.model
@@ -358,6 +368,8 @@ def test_the_head_waits_for_a_hand_held_at_the_chin(solver):
     rollout = timeline.realize(score, solver=solver)
     head = _dofs(solver, "head")
     held, turn = _frames(rollout, 0.0, 1.0), _frames(rollout, 1.0, 1.1)
+    # the head stays at rest until the hand leaves the chin, then turns (its lead-in
+    # starts no earlier than that)
     assert np.abs(rollout.qpos[held][:, head] - rollout.qpos[0, head]).max() == 0.0
     assert np.abs(rollout.qpos[turn[-1], head] - rollout.qpos[0, head]).max() > 0.2
     assert [t.describe() for t in rollout.traces if not t.ok] == []

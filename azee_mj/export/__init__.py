@@ -64,7 +64,7 @@ def load_motion(
     from azee_mj import timeline
     from azee_mj.model import load_model
     from azee_mj.rollout_io import load_rollout
-    from azee_mj.schedule import schedule
+    from azee_mj.schedule import schedule, shifted
 
     path = Path(path)
     bundled = model is None
@@ -86,7 +86,7 @@ def load_motion(
         )
     sched = r.schedule
     if score is not None:
-        sched = schedule(sc.load_score(Path(score)))
+        sched = shifted(schedule(sc.load_score(Path(score))), r.score_start)
     return Motion(np.asarray(r.qpos, float), float(r.fps), schedule_tuples(sched), path.stem)
 
 

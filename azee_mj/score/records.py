@@ -400,6 +400,17 @@ class Score:
 
         return dataclasses.replace(self, root=scaled(self.root))
 
+    def shifted(self, by: float) -> Score:
+        """This score with every block ``by`` seconds later (its times on the clock of a
+        rollout whose score starts at ``by`` [s])."""
+
+        def moved(b: Block) -> Block:
+            kids = tuple(moved(c) for c in b.children)
+            start, end = exact_time(b.start + by), exact_time(b.end + by)
+            return dataclasses.replace(b, start=start, end=end, children=kids)
+
+        return dataclasses.replace(self, root=moved(self.root))
+
     def block(self, path: str) -> Block:
         """The block with dotted path ``path`` (KeyError if none)."""
         for b in self.blocks():

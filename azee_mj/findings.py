@@ -41,7 +41,8 @@ def frame_speeds(x: np.ndarray, fps: float) -> np.ndarray:
     step = np.zeros(len(x))
     if len(x) > 1:
         d = np.linalg.norm(np.diff(x, axis=0).reshape(len(x) - 1, -1), axis=1) * fps
-        step[1:], step[:-1] = d, np.maximum(step[:-1], d)
+        step[1:] = d
+        step[:-1] = np.maximum(step[:-1], d)
     return step
 
 

@@ -143,7 +143,7 @@ class Motion:
             lead = max(lead, r.lead - first.start)
         self.tie_hands(keys)
         self.lead_frames = int(np.ceil(lead * self.fps - 1e-6))
-        self.end = end
+        self.end = end if end <= sched.score.duration else np.ceil(end * self.fps) / self.fps
 
     def tie_hands(self, keys) -> None:
         """A hand shape forms while its arm travels: a hand track whose first posture starts

@@ -1,0 +1,153 @@
+"""Motion a signer makes (pass 2 with rest): the lead-in from rest before the score, the
+return to rest after, no clamp on the speed a score's timing needs (a finding instead),
+tempo, and the rollout file keeping the score's start and the findings."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from azee_mj import movement as mv
+from azee_mj import timeline
+from azee_mj.blend import MIN_LEAD, REST_HOLD, REST_SPEED
+from azee_mj.cli import main
+from azee_mj.rollout_io import load_rollout, save_rollout
+from azee_mj.schedule import make_solver
+from azee_mj.score import load_score
+from azee_mj.sites import DEFAULT_MAP
+
+DATA = Path(__file__).parent / "data"
+GOOD = DATA / "good.json"
+
+
+@pytest.fixture(scope="module")
+def solver():
+    return make_solver(seed=0)
+
+
+@pytest.fixture(scope="module")
+def good(solver):
+    return timeline.realize(GOOD, solver=solver)
+
+
+def _wrist_moves(r, site="WR_R"):
+    pos = r.site_pos[:, r.site_names.index(site)]
+    return [(m, r.time[m.first], r.time[m.last]) for m in mv.movements(pos, r.fps)]
+
+
+def test_the_lead_in_comes_from_rest_before_the_score_at_a_human_speed(good, solver):
+    np.testing.assert_allclose(good.qpos[0], solver.natural)  # rest
+    assert good.score_start >= MIN_LEAD
+    assert good.score_start * good.fps == pytest.approx(round(good.score_start * good.fps))
+    lead = [m for m, t0, t1 in _wrist_moves(good) if t1 <= good.score_start + 0.04]
+    assert len(lead) == 1
+    # one bell: a single peak sized for REST_SPEED, smooth as minimum jerk
+    assert lead[0].peaks == 1 and lead[0].peak_speed < 1.15 * REST_SPEED
+    assert -1.6 <= lead[0].sparc <= -1.35
+
+
+def test_the_blocks_keep_their_time_on_the_rollouts_clock(good, solver):
+    plain = timeline.realize(GOOD, solver=solver, rest=False)
+    assert plain.score_start == 0.0 and len(plain.time) == round(1.2 * 50) + 1
+    moved = {
+        t: [(i.block, i.start - good.score_start, i.end - good.score_start) for i in v]
+        for t, v in good.schedule.items()
+    }
+    same = {t: [(i.block, i.start, i.end) for i in v] for t, v in plain.schedule.items()}
+    assert moved.keys() == same.keys()
+    for t in same:
+        np.testing.assert_allclose([x[1:] for x in moved[t]], [x[1:] for x in same[t]])
+    assert all(t.ok for t in good.traces) and all(t.ok for t in plain.traces)
+    # without rest each track starts in its first posture: no lead-in movement
+    assert not [m for m, t0, t1 in _wrist_moves(plain) if t0 < 0.01]
+
+
+def test_every_track_returns_to_rest_after_a_hold(good, solver):
+    np.testing.assert_allclose(good.qpos[-1], solver.natural, atol=1e-9)
+    end = good.score_start + 1.2
+    # still for the hold after the last block, then one smooth return
+    still = (good.time >= end) & (good.time < end + REST_HOLD - 1e-9)
+    q = good.qpos[still]
+    assert np.abs(q - q[0]).max() < 1e-9
+    back = [m for m, t0, t1 in _wrist_moves(good) if t0 >= end]
+    assert len(back) == 1 and back[0].peaks == 1 and back[0].peak_speed < 3.0
+    assert -1.6 <= back[0].sparc <= -1.35
+
+
+def _beside(side: str) -> dict:
+    """25 cm in front of the signing space, 15 cm to ``side``."""
+    by = {"add": [{"scale": "fwd", "by": 0.25}, {"scale": side, "by": 0.15}]}
+    return {"translate": "^ssp", "by": by}
+
+
+def test_a_hand_with_no_further_block_relaxes(solver):
+    score = {
+        "format": "azee-score",
+        "version": 1,
+        "strong_side": "R",
+        "root": {
+            "name": "S",
+            "kind": "sync",
+            "start": 0,
+            "end": 3.0,
+            "children": [
+                {
+                    "name": "WEAK",
+                    "kind": "cstr",
+                    "start": 0.2,
+                    "end": 0.6,
+                    "constraints": [{"type": "place", "site": "@WR(w)", "at": _beside("lat(w)")}],
+                },
+                {
+                    "name": "STRONG",
+                    "kind": "cstr",
+                    "start": 0.2,
+                    "end": 3.0,
+                    "constraints": [{"type": "place", "site": "@WR(s)", "at": _beside("lat(s)")}],
+                },
+            ],
+        },
+    }
+    r = timeline.realize(score, solver=solver)
+    arm = [solver.model.jnt_qposadr[solver.joint_id(j)] for j in DEFAULT_MAP.tracks["arm_L"]]
+    at = round((r.score_start + 2.9) * r.fps)  # the strong hand still signs: the weak rests
+    np.testing.assert_allclose(r.qpos[at, arm], solver.natural[arm], atol=1e-9)
+    assert all(t.ok for t in r.traces)
+
+
+def test_tempo_scales_the_scores_time(solver):
+    slow = timeline.realize(GOOD, solver=solver, tempo=0.5)
+    spans = {
+        i.block: (i.start - slow.score_start, i.end - slow.score_start)
+        for v in slow.schedule.values()
+        for i in v
+    }
+    k2 = load_score(GOOD).block("GOOD.K2")
+    assert spans["GOOD.K2"] == pytest.approx((2 * k2.start, 2 * k2.end))  # at half speed
+    with pytest.raises(Exception, match="tempo must be a number from 0.1 to 10"):
+        timeline.realize(GOOD, solver=solver, tempo=0.0)
+
+
+def test_a_jump_the_score_times_is_a_speed_finding_and_strict_fails(solver, tmp_path, capsys):
+    r = timeline.realize(DATA / "high_at_zero.json", solver=solver)
+    found = [f for f in r.findings if f.kind == "speed"]
+    assert found and {f.block for f in found} == {"HIGH_AT_ZERO.DOWN"}
+    assert max(f.value for f in found if f.unit == "m/s") > 3.0
+    assert all(t.ok for t in r.traces)  # no constraint gives way to the speed
+    path = tmp_path / "r.npz"
+    save_rollout(path, r)
+    back = load_rollout(path, solver.model.nq)
+    assert back.score_start == r.score_start and back.findings == r.findings
+    out = str(tmp_path / "s.npz")
+    assert main(["realize", str(DATA / "high_at_zero.json"), "-o", out]) == 0
+    assert main(["realize", str(DATA / "high_at_zero.json"), "-o", out, "--strict"]) == 1
+    assert "finding: speed: WR_R" in capsys.readouterr().out
+    assert main(["check", out, "--score", str(DATA / "high_at_zero.json")]) == 0
+
+
+def test_bad_motion_options_exit_2(tmp_path, capsys):
+    out = str(tmp_path / "x.npz")
+    assert main(["realize", str(GOOD), "-o", out, "--tempo", "0"]) == 2
+    assert "--tempo must be a number from 0.1 to 10, got 0" in capsys.readouterr().err
+    assert main(["realize", str(GOOD), "-o", out, "--rest-hold", "-1"]) == 2
+    assert not Path(out).exists()

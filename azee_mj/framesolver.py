@@ -172,12 +172,12 @@ class FrameSolver:
         blend passes through it (staying close: consecutive pushed frames cannot zig-zag)."""
         ad, step = self.adapter, self.step
         free = {j for tr in sorted(tracks) for j in self.schedule.track_joints[tr]}
-        soft = ad.soft_targets(q[f], free)
         if f > 0 and free:
             d, before = ad.dofs(free), q[f - 1]
             q[f][d] = np.clip(q[f][d], before[d] - step, before[d] + step)
         if not tracks or not ad.penetrates(q[f], t):
             return
+        soft = ad.soft_targets(q[f], free)
         q0 = q[f].copy()
         if f > 0:
             # from half a step toward the curve from the frame before, moving at most

@@ -55,8 +55,8 @@ def test_the_blocks_keep_their_time_on_the_rollouts_clock(good, solver):
     }
     same = {t: [(i.block, i.start, i.end) for i in v] for t, v in plain.schedule.items()}
     assert moved.keys() == same.keys()
-    for t in same:
-        np.testing.assert_allclose([x[1:] for x in moved[t]], [x[1:] for x in same[t]])
+    for t, ivs in same.items():
+        np.testing.assert_allclose([x[1:] for x in moved[t]], [x[1:] for x in ivs])
     assert all(t.ok for t in good.traces) and all(t.ok for t in plain.traces)
     # without rest each track starts in its first posture: no lead-in movement
     assert not [m for m, t0, t1 in _wrist_moves(plain) if t0 < 0.01]

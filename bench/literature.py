@@ -100,7 +100,9 @@ def run_one(name: str, mode: str, solver, model) -> tuple[dict, object]:
     wall = time.perf_counter() - t0
     place = [t.worst for t in r.traces if t.unit == "m"]
     ang = [t.worst for t in r.traces if t.unit == "rad"]
-    rep = check_poses(model, r.qpos, allowed=contact_pairs(score, r.time))
+    rep = check_poses(
+        model, r.qpos, allowed=contact_pairs(score, r.time, score_start=r.score_start)
+    )
     duration = float(r.time[-1])
     return {
         "mode": mode,

@@ -121,7 +121,9 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
         "peak_wrist_speed": max((m["peak_speed"] for m in moves), default=0.0),
         "movements": moves,
     }
-    return rec, {"time": r.time, **profiles}
+    start = float(getattr(r, "score_start", 0.0))
+    dur = float(load_score(score_dict).duration)
+    return rec, {"time": r.time, "score": (start, start + dur), **profiles}
 
 
 def summary(recs: list[dict]) -> dict:
@@ -173,6 +175,8 @@ def plot(path: Path, profiles: dict[str, dict]) -> None:
     for ax, (name, p) in zip(axes[:, 0], profiles.items()):
         for site in WRISTS:
             ax.plot(p["time"], p[site], label=site, lw=1)
+        if p.get("score", (0.0, 0.0))[1] > 0.0:  # the score's span; outside it, rest
+            ax.axvspan(*p["score"], color="0.93", zorder=0)
         ax.axhline(WRIST_MAX, color="0.6", lw=0.6, ls="--")
         ax.set_ylabel("m/s")
         ax.set_title(name, fontsize=8, loc="left")

@@ -54,6 +54,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik, load_model
 from azee_mj import kinematics as kin
 from azee_mj.ergonomics import ergonomics
+from azee_mj.findings import leaving
 from azee_mj.schedule import constraint_tracks, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP, resolve_side
@@ -279,10 +280,11 @@ def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict
     ro = realize(score, fps=FPS, solver=solver)
     wall = time.perf_counter() - t0
     touch = [t for t in ro.traces if t.block.endswith("TOUCH")]
-    held = round(HELD_T * FPS)
+    held = round((HELD_T + ro.score_start) * FPS)  # after the lead-in from rest
     site, at = (_resolve(x, side) for x in contact[4:6])
     pair = meas.contact_pair(site, at)
-    in_hold = np.flatnonzero((ro.time >= HOLD[0] - 1e-9) & (ro.time < HOLD[1]))
+    clock = ro.time - ro.score_start  # the score's clock (the lead-in from rest comes first)
+    in_hold = np.flatnonzero((clock >= HOLD[0] - 1e-9) & (clock < HOLD[1]))
     pens = [meas.penetration(q, pair) for q in ro.qpos]
     dq = np.abs(np.diff(ro.qpos[:, meas.hinge_q], axis=0)) * FPS
     rec = {
@@ -292,6 +294,7 @@ def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict
         "site": site,
         "at": at,
         "residual_mm": max(t.worst for t in touch) * 1e3,
+        "leaving_frames": int(leaving(ro.traces).sum()),
         "pair_penetration_mm": max(pens[i][0] for i in in_hold) * 1e3,
         "other_penetration_mm": max(p[1] for p in pens) * 1e3,
         "other_penetration_bodies": max(pens, key=lambda p: p[1])[2],

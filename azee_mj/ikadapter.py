@@ -29,6 +29,7 @@ class IKAdapter:
         self.schedule = schedule
         self.solver = schedule.solver
         self.results: list[ik.IKResult] = []
+        self._dofs: dict[tuple[str, ...], np.ndarray] = {}
 
     def problem(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKProblem:
         """The problem of constraints ``cons`` moving joints ``free`` from ``q0`` (nq,)
@@ -61,9 +62,15 @@ class IKAdapter:
         return cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT
 
     def dofs(self, joints) -> np.ndarray:
-        """Dof indices of joint names."""
-        m = self.solver.model
-        return np.array([m.jnt_dofadr[self.solver.joint_id(j)] for j in joints], int)
+        """Dof indices of joint names (in their order; looked up once per sequence)."""
+        key = tuple(joints)
+        out = self._dofs.get(key)
+        if out is None:
+            m = self.solver.model
+            out = np.array([m.jnt_dofadr[self.solver.joint_id(j)] for j in key], int)
+            out.flags.writeable = False
+            self._dofs[key] = out
+        return out
 
     def soft_targets(self, q: np.ndarray, joints) -> list[cn.JointTarget]:
         """Soft targets keeping ``joints`` near posture ``q`` (a blend to follow)."""

@@ -210,7 +210,7 @@ def constraint_traces(
     posture misses it) is said on the traces. The score's time 0 is frame ``lead_frames``
     (the traces' times are on the rollout's clock); ``blocks``: only these block paths."""
     reasons = reasons or {}
-    solver, comp, out = schedule.solver, schedule.comp, []
+    comp, items = schedule.comp, []
     shift = lead_frames / fps
     for b in schedule.blocks:
         if b.kind is not sc.BlockKind.CSTR or (blocks is not None and b.path not in blocks):
@@ -220,26 +220,40 @@ def constraint_traces(
             if ic is None:
                 continue
             span = frame_range(b.start, b.end, fps, len(times) - lead_frames)
-            span = range(span.start + lead_frames, span.stop + lead_frames)
-            vals = np.array([ic.residual(solver.at(q[f])) for f in span], float)
-            unit = "m" if isinstance(ic, cn.Place) else "rad"
-            kind = type(c).__name__.lower()
-            out.append(
-                ConstraintTrace(
-                    b.path,
-                    c.index,
-                    kind,
-                    ic.tol,
-                    unit,
-                    b.start + shift,
-                    b.end + shift,
-                    span.start,
-                    vals,
-                    len(times),
-                    reasons.get(ic.label, ""),
-                )
-            )
-    return tuple(out)
+            items.append((b, c, ic, range(span.start + lead_frames, span.stop + lead_frames)))
+    values = residuals(schedule.solver, q, [(ic, span) for _, _, ic, span in items])
+    return tuple(
+        ConstraintTrace(
+            b.path,
+            c.index,
+            type(c).__name__.lower(),
+            ic.tol,
+            "m" if isinstance(ic, cn.Place) else "rad",
+            b.start + shift,
+            b.end + shift,
+            span.start,
+            vals,
+            len(times),
+            reasons.get(ic.label, ""),
+        )
+        for (b, c, ic, span), vals in zip(items, values)
+    )
+
+
+def residuals(solver: ik.Solver, q: np.ndarray, items) -> list[np.ndarray]:
+    """Per ``(constraint, frames)`` of ``items``, its residual at each of those frames of
+    ``q`` (T, nq): the kinematics of each frame run once for every constraint."""
+    out = [np.empty(len(span)) for _, span in items]
+    by_frame: dict[int, list[int]] = {}
+    for j, (_, span) in enumerate(items):
+        for f in span:
+            by_frame.setdefault(f, []).append(j)
+    for f in sorted(by_frame):
+        k = solver.at(q[f])
+        for j in by_frame[f]:
+            ic, span = items[j]
+            out[j][f - span.start] = ic.residual(k)
+    return out
 
 
 def site_positions(solver: ik.Solver, smap: SignerMap, q: np.ndarray) -> np.ndarray:

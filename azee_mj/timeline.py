@@ -126,11 +126,7 @@ def realize(
     t_start = _time.perf_counter()
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
-    if not (np.isfinite(tempo) and 0.1 <= tempo <= 10.0):
-        raise AzeeError(f"tempo must be a number from 0.1 to 10, got {tempo!r}")
-    if not (np.isfinite(hold) and 0.0 <= hold <= 10.0):
-        raise AzeeError(f"the rest hold must be from 0 to 10 s, got {hold!r}")
-    score = score.at_tempo(tempo) if tempo != 1.0 else score
+    score = at_tempo(score, tempo, hold)
     mode = Mode(mode) if isinstance(mode, str) else mode
     fps = check_fps(fps, "fps")
     smap = signer_map or DEFAULT_MAP
@@ -173,6 +169,16 @@ def realize(
     return Rollout(
         fps, mode, rt, q, tuple(smap.sites), site_pos, intervals, traces, stats, shift, found
     )
+
+
+def at_tempo(score: sc.Score, tempo: float, hold: float) -> sc.Score:
+    """``score`` played ``tempo`` times as fast, after checking ``tempo`` and the rest
+    ``hold`` [s] (a clean :class:`AzeeError` naming a bad one)."""
+    if not (np.isfinite(tempo) and 0.1 <= tempo <= 10.0):
+        raise AzeeError(f"tempo must be a number from 0.1 to 10, got {tempo!r}")
+    if not (np.isfinite(hold) and 0.0 <= hold <= 10.0):
+        raise AzeeError(f"the rest hold must be from 0 to 10 s, got {hold!r}")
+    return score.at_tempo(tempo) if tempo != 1.0 else score
 
 
 def trilled_blocks(score: sc.Score) -> set[str]:

@@ -25,9 +25,11 @@ from azee_mj.azee.catalogue import (
     block_name,
     fmt_value,
     look,
+    quote,
 )
 from azee_mj.azee.errors import ExpressionError
 from azee_mj.azee.lexicon import Lexicon, Sign, fill
+from azee_mj.azee.nonmanual import RuleProblem
 from azee_mj.azee.rules import BY_NAME, RULES
 from azee_mj.azee.syntax import App, Arg, Atom, Node, parse
 from azee_mj.errors import ScoreError
@@ -36,7 +38,7 @@ from azee_mj.score import load_score
 MAX_DEPTH = 64
 #: Decimals output times are rounded to [s].
 TIME_DECIMALS = 9
-_ATOM_KIND = {"locus": "locus", "atom": "digit", "num": "num"}
+_ATOM_KIND = {"locus": "locus", "atom": "digit", "num": "num", "text": "text"}
 
 
 def _close(name: str, valid) -> str | None:
@@ -52,6 +54,8 @@ def _kind_of(node: Node) -> str:
 def _describe(node: Node) -> str:
     if isinstance(node, App):
         return f"score :{node.name}"
+    if node.kind == "text":
+        return f"text {quote(node.text)}"
     sigil = {"locus": "^", "atom": ".", "num": ""}[node.kind]
     return f"{_kind_of(node)} {sigil}{node.text}"
 
@@ -101,6 +105,9 @@ class _Evaluator:
                 saved, self.where = self.where, (node.line, node.col, here)
                 try:
                     return rule.build(self, args, head)
+                except RuleProblem as p:
+                    at = f"{here}'{p.label}" if p.label else here
+                    raise self.err(p.problem, node.line, node.col, at) from None
                 finally:
                     self.where = saved
             if node.name in self.lex:
@@ -145,6 +152,8 @@ class _Evaluator:
                     path or "syntax",
                 )
             return Lit("digit", int(node.text[3:]), f".{node.text}")
+        if node.kind == "text":
+            return Lit("text", node.text, quote(node.text))
         return Lit("num", node.value, fmt_value(node.value))
 
     # -- arguments ------------------------------------------------------------------------
@@ -244,6 +253,8 @@ class _Evaluator:
                 if keep_lits
                 else float(p.default)
             )
+        if p.kind == "text":
+            return Lit("text", p.default, quote(p.default))
         return Lit(p.kind, p.default, fmt_value(p.default))
 
     def check_num(self, p: Param, v: Lit, node: Node, here: str) -> None:

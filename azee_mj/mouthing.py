@@ -218,12 +218,12 @@ def phonemes(word: str, lang: str) -> tuple[str, ...]:
     Raises :class:`MouthingUnavailableError` without phonemizer or espeak-ng and
     :class:`MouthingError` for an unknown language or a word with no phones.
     """
-    from phonemizer.separator import Separator
-
     text = unicodedata.normalize("NFC", word).strip()
     if not text:
         raise MouthingError('the word is empty; write the word to mouth, e.g. "maison"')
     backend = _backend(voice(lang))
+    from phonemizer.separator import Separator
+
     out = backend.phonemize(
         [text], separator=Separator(phone=" ", word=" | ", syllable=""), strip=True
     )

@@ -407,7 +407,7 @@ def _resolve(model, t: Term, smap: SignerMap):
 
 
 def _face_limbs() -> list[tuple[int, int]]:
-    idx = {n: i for i, n in enumerate(FACE_SITES)}
+    idx = {n: i for i, n in enumerate(POINTS["FACE_LANDMARKS"][0])}
     return [(idx[a], idx[b]) for a, b in FACE_LIMBS_BY_NAME]
 
 

@@ -389,6 +389,26 @@ def test_nonmanual_rules_load(text):
     load_score(compile_text(text, strong_side="L"))
 
 
+@needs_arkit
+@pytest.mark.parametrize(
+    "text",
+    [
+        *NONMANUAL[:3],
+        ':mouth-gesture(:bien, "pah")',
+        ':mouth-gesture(:armoire, "puff")',
+        ':mouthing(:arbre, "arbre", \'lang "fr")',
+        ":with-surprise(:cinema)",
+        ":too-scared-to-look(:penser)",
+        ":info-about(:cinema, :yes-no-question(:bien))",
+    ],
+)
+def test_nonmanual_rules_realize_within_tolerance(text):
+    if "mouthing" in text:
+        pytest.importorskip("phonemizer", reason="mouthing needs the [mouthing] extra")
+    r = realize(compile_text(text), fps=25.0, solver=make_solver())
+    assert all(t.ok for t in r.traces), [t.describe() for t in r.traces if not t.ok]
+
+
 @pytest.mark.parametrize("name", Lexicon().names())
 def test_every_sign_gives_a_valid_score(name):
     load_score(compile_text(f":{name}"))
@@ -609,7 +629,7 @@ ERRORS = [
         ":seq(:bien, $x)",
         (
             "<-e>:1:13: syntax: unexpected character '$'; an expression starts "
-            "with :name, ^locus, .atom, 'label, a number or a \"text\""
+            'with :name, ^locus, .atom, \'label, a number or a "text"'
         ),
     ),
 ]

@@ -277,6 +277,10 @@ def test_a_mouthed_sentence_realizes_on_the_stand_in_face(model):
     assert not bad, bad
     jaw = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "jaw_open")]
     assert np.ptp(r.qpos[:, jaw]) > 0.05  # the jaw moved with the words
+    w = face.weights(model, r.qpos, smap)
+    mouth = [arkit.NAMES.index(n) for n in arkit.NAMES if n.startswith(("jaw", "mouth"))]
+    rate = np.abs(np.diff(w[:, mouth], axis=0)).max() * r.fps
+    assert 0 < rate <= 1.875 * 14, rate  # the limit of the planned keys (Fletcher 1972)
 
 
 @needs_arkit

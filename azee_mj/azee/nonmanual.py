@@ -207,12 +207,13 @@ def _mouth_gesture(ctx, a: dict, head: str) -> ScoreVal:
         )
     tl = Timeline()
     s, e = tl.put("SIG", a["sig"])
-    span = max(0.0, e - s - RELAX_S - RELEASE_S)
+    relax = e - s > 2 * (RELAX_S + RELEASE_S)  # else the shape holds (see face_blocks)
+    span = e - s - (RELAX_S + RELEASE_S if relax else 0.0)
     used: dict[str, float] = {}
     for k, (f0, f1, w) in enumerate(g.phases):
         tl.cstr(f"MOUTH_{k}", s + f0 * span, s + f1 * span, arkit.constraints(w))
         used.update(dict.fromkeys(w, 0.0))
-    if span > 0:
+    if relax:
         tl.cstr("MOUTH_RELAX", e - RELAX_S, e, arkit.constraints(used))
     return tl.value(head, "mouth-gesture")
 

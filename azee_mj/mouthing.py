@@ -74,19 +74,21 @@ VISEMES = {
 
 #: IPA phone (stress, length and nasalisation marks removed) -> viseme.
 IPA_VISEMES: dict[str, str] = {
-    **dict.fromkeys(["p", "b", "m", "ɱ"], "PP"),
-    **dict.fromkeys(["f", "v", "pf"], "FF"),
+    **dict.fromkeys(["p", "b", "m", "ɱ", "β", "ɸ", "ʙ"], "PP"),
+    **dict.fromkeys(["f", "v", "pf", "ʋ"], "FF"),
     **dict.fromkeys(["θ", "ð"], "TH"),
-    **dict.fromkeys(["t", "d", "ɾ", "ɗ"], "DD"),
-    **dict.fromkeys(["k", "g", "ɡ", "ŋ", "x", "ç", "h", "ʁ", "ʀ", "χ", "ɣ", "q"], "kk"),
-    **dict.fromkeys(["ʃ", "ʒ", "tʃ", "dʒ", "ɕ", "ʑ", "c", "ɟ"], "CH"),
+    **dict.fromkeys(["t", "d", "ɾ", "ɗ", "ʈ", "ɖ"], "DD"),
+    **dict.fromkeys(
+        ["k", "g", "ɡ", "ŋ", "x", "ç", "h", "ɦ", "ʁ", "ʀ", "χ", "ɣ", "ɰ", "q", "ħ", "ʕ"], "kk"
+    ),
+    **dict.fromkeys(["ʃ", "ʒ", "tʃ", "dʒ", "ɕ", "ʑ", "c", "ɟ", "ʂ", "ʐ"], "CH"),
     **dict.fromkeys(["s", "z", "ts", "dz"], "SS"),
-    **dict.fromkeys(["n", "l", "ɲ", "ɫ", "ʎ", "ɬ", "n̩", "l̩"], "nn"),
-    **dict.fromkeys(["ɹ", "r", "ɻ", "ɚ", "ɝ"], "RR"),
+    **dict.fromkeys(["n", "l", "ɲ", "ɫ", "ʎ", "ɬ", "ɮ", "ɳ", "ɭ"], "nn"),
+    **dict.fromkeys(["ɹ", "r", "ɻ", "ɚ", "ɝ", "ɽ"], "RR"),
     **dict.fromkeys(["a", "ɑ", "ɐ", "æ", "ʌ", "ɒ"], "aa"),
     **dict.fromkeys(["e", "ɛ", "ə", "ɜ", "œ", "ɘ", "ᵻ"], "E"),
     **dict.fromkeys(["i", "ɪ", "j", "ɨ", "ʝ"], "ih"),
-    **dict.fromkeys(["o", "ɔ", "ø", "ɵ"], "oh"),
+    **dict.fromkeys(["o", "ɔ", "ø", "ɵ", "ɤ", "ɞ"], "oh"),
     **dict.fromkeys(["u", "ʊ", "w", "ɥ", "y", "ʏ", "ɯ"], "ou"),
     **dict.fromkeys(["ʔ"], "sil"),
 }
@@ -153,7 +155,11 @@ DOMINANCE = {
     "nn": 0.3,
 }
 
-_DROP = "ːˑˈˌ̩̯̃͡‿"  # length, stress, nasal tilde, syllabic, non-syllabic, tie bars
+#: Marks dropped before the table: length, stress, nasalisation, syllabic, non-syllabic,
+#: tie bars, and secondary articulations and phonation (palatalised, aspirated, labialised,
+#: velarised, pharyngealised, ejective, dental, voiceless, voiced, rhotic, lowered, raised,
+#: retracted, advanced, centralised), which do not change the viseme.
+_DROP = "ːˑˈˌ̩̯̃͡‿ʲʰʷˠˤʼ̪̥̬˞̞̝̠̟̈"
 
 
 class MouthingError(AzeeError):

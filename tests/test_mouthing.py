@@ -69,6 +69,7 @@ def test_every_viseme_has_weights_in_range_and_a_dominance():
 def test_length_stress_and_nasal_marks_do_not_change_the_viseme():
     assert mouthing.visemes(["ɔ̃", "øː", "ˈa", "ç"]) == ("oh", "oh", "aa", "kk")
     assert mouthing.visemes(["aʊ", "tʃ"]) == ("aa", "ou", "CH")  # diphthong: two; affricate: one
+    assert mouthing.visemes(["mʲ", "dʰ", "t̪"]) == ("PP", "DD", "DD")  # secondary articulations
 
 
 def test_a_phone_without_a_viseme_is_named():

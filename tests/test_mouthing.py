@@ -293,3 +293,45 @@ def test_a_mouthed_sentence_realizes_within_human_speed(model):
     mouth = [arkit.NAMES.index(n) for n in arkit.NAMES if n.startswith(("jaw", "mouth"))]
     rate = np.abs(np.diff(w[:, mouth], axis=0)).max() * r.fps
     assert rate <= 1.875 * 14 + 1e-6, rate  # the limit of the planned keys (Fletcher 1972)
+
+
+def _face_score(mid: str, weight: float) -> dict:
+    return {
+        "format": "azee-score",
+        "version": 1,
+        "root": {
+            "name": "S",
+            "kind": "sync",
+            "start": 0,
+            "end": 1,
+            "children": [
+                {
+                    "name": "FACE",
+                    "kind": "cstr",
+                    "start": 0,
+                    "end": 1,
+                    "constraints": [{"type": "morph", "id": mid, "weight": weight}],
+                }
+            ],
+        },
+    }
+
+
+def test_an_arkit_weight_out_of_range_or_an_unknown_shape_is_one_message():
+    from azee_mj.errors import ScoreError
+
+    smap = stand_in_map()
+    load_score(_face_score("jawOpen", 1.0), smap)
+    with pytest.raises(ScoreError) as e:
+        load_score(_face_score("jawOpen", 1.5), smap)
+    assert str(e.value) == (
+        "S.FACE: constraint 1 (morph): field 'weight': weight 1.5 is out of range; ARKit "
+        "shapes take 0 to 1"
+    )
+    with pytest.raises(ScoreError) as e:
+        load_score(_face_score("mouthSmile", -0.2), smap)
+    assert "weight -0.2 is out of range" in str(e.value)
+    with pytest.raises(ScoreError) as e:
+        load_score(_face_score("jawOpn", 0.5), smap)
+    assert str(e.value).startswith("S.FACE: constraint 1 (morph): field 'id': unknown morph")
+    assert str(e.value).endswith("did you mean 'jawOpen'?")

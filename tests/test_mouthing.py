@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import subprocess
 import sys
+from pathlib import Path
 from types import MappingProxyType
 
 import mujoco
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 from azee_mj import arkit, mouthing
-from azee_mj.azee import ExpressionError, compile_text, parse
+from azee_mj.azee import ExpressionError, compile_file, compile_text, parse
 from azee_mj.azee.catalogue import quote
 from azee_mj.azee.nonmanual import EXPRESSIONS, GESTURES
 from azee_mj.cli import main
@@ -335,3 +336,20 @@ def test_an_arkit_weight_out_of_range_or_an_unknown_shape_is_one_message():
         load_score(_face_score("jawOpn", 0.5), smap)
     assert str(e.value).startswith("S.FACE: constraint 1 (morph): field 'id': unknown morph")
     assert str(e.value).endswith("did you mean 'jawOpen'?")
+
+
+@needs_phonemizer
+def test_the_documented_example_compiles_and_realizes_on_the_stand_in_face():
+    path = Path(__file__).resolve().parent.parent / "docs" / "examples" / "mouthing.azee"
+    s = compile_file(path)
+    names = {b["name"] for b in _walk(s["root"])}
+    assert {"FACE", "HEAD", "BLINK", "VISEME_0"} <= names
+    smap = stand_in_map()
+    r = realize(load_score(s, smap), fps=25.0, solver=make_solver(signer_map=smap), signer_map=smap)
+    assert all(t.ok for t in r.traces), [t.describe() for t in r.traces if not t.ok]
+
+
+def _walk(block: dict):
+    yield block
+    for c in block.get("children", ()):
+        yield from _walk(c)

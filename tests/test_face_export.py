@@ -16,16 +16,10 @@ from azee_mj.cli import main
 from azee_mj.export import Motion, export
 from azee_mj.export import arkit as face
 from azee_mj.export import pose as pose_mod
-from azee_mj.model import load_model
 from azee_mj.sites import DEFAULT_MAP
 
 ARKIT_READY = all(n in DEFAULT_MAP.morphs for n in (*arkit.NAMES, *arkit.PAIRS))
 needs_arkit = pytest.mark.skipif(not ARKIT_READY, reason="ARKit morphs not in the catalogue yet")
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
 
 
 def posture(model, morphs: dict[tuple[str, str | None], float]) -> np.ndarray:

@@ -19,7 +19,6 @@ from azee_mj.azee.catalogue import quote
 from azee_mj.azee.nonmanual import EXPRESSIONS, GESTURES
 from azee_mj.cli import main
 from azee_mj.export import arkit as face
-from azee_mj.model import load_model
 from azee_mj.schedule import make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP, Morph
@@ -263,11 +262,6 @@ SENTENCE = (
     ':seq(:mouthing(:arbre, "arbre"), :wh-question(:penser), '
     ':mouth-gesture(:bien, "pah"), :with-surprise(:cinema), :boundary(:armoire))'
 )
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model()
 
 
 @needs_phonemizer

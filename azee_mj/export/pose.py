@@ -43,13 +43,16 @@ CX, CY = 500.0, 600.0
 @dataclasses.dataclass(frozen=True)
 class Term:
     """``weight`` times one of: AZee ``site``; the head of AZee ``bone``; ``offset`` [m] in
-    the frame of model body ``body``."""
+    the frame of model body ``body``; or, with ``carrier``, the point ``offset`` [m, signer
+    frame] from AZee ``site`` at rest, carried by the model body ``carrier`` (a face part of
+    the rig) or, when the model has no such body, by the site's own body."""
 
     weight: float = 1.0
     site: str | None = None
     bone: str | None = None
     body: str | None = None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    carrier: str | None = None
 
 
 def _s(name: str, w: float = 1.0) -> Term:
@@ -223,6 +226,31 @@ FACE_SITES = {
     "93": "LOBE_R",
     "323": "LOBE_L",
 }
+#: Face points carried by the rig's face parts: face-mesh index -> (AZee site, model body
+#: that moves it, offset from the site at rest [m]). The brows and mouth corners ride on
+#: their bodies; the upper eyelids' margins (159, 386) on the lids, 12.5 mm from the eye's
+#: centre, 20 degrees above its axis; the lower lids' (145, 374) 35 degrees below; the lower
+#: lip (14) on the jaw.
+FACE_RIG = {
+    **{
+        i: (site, f"brow_{site[-1]}", (0.0, 0.0, 0.0))
+        for i, site in (
+            ("105", "EB_R"),
+            ("334", "EB_L"),
+            ("107", "EBi_R"),
+            ("336", "EBi_L"),
+            ("70", "EBe_R"),
+            ("300", "EBe_L"),
+        )
+    },
+    "61": ("MO_R", "mouth_R", (0.0, 0.0, 0.0)),
+    "291": ("MO_L", "mouth_L", (0.0, 0.0, 0.0)),
+    "159": ("EYE_R", "lid_R", (-0.00075, 0.0, 0.00428)),
+    "386": ("EYE_L", "lid_L", (-0.00075, 0.0, 0.00428)),
+    "145": ("EYE_R", "lid_lower_R", (-0.00226, 0.0, -0.00717)),
+    "374": ("EYE_L", "lid_lower_L", (-0.00226, 0.0, -0.00717)),
+    "14": ("MO", "jaw", (-0.0012, 0.0, -0.0064)),
+}
 #: Lines drawn between face points (brows, eyes, nose, mouth, the side of the face).
 FACE_LIMBS_BY_NAME = (
     ("70", "105"),
@@ -242,6 +270,10 @@ FACE_LIMBS_BY_NAME = (
     ("454", "323"),
     ("50", "61"),
     ("280", "291"),
+    ("159", "145"),
+    ("386", "374"),
+    ("61", "14"),
+    ("14", "291"),
 )
 
 _HAND_DIGITS = (
@@ -278,6 +310,13 @@ def _pose_point_terms(name: str) -> tuple[Term, ...]:
     return (Term(body="pelvis", offset=(x, y if side == "R" else -y, z)),)
 
 
+def _face(index: str, site: str) -> tuple[Term, ...]:
+    if index not in FACE_RIG:
+        return (_s(site),)
+    site, carrier, offset = FACE_RIG[index]
+    return (Term(site=site, carrier=carrier, offset=offset),)
+
+
 def _hand_terms(side: str) -> list[tuple[Term, ...]]:
     out = [(_s(f"WR_{side}"),)]
     for _, bone, letter in _HAND_DIGITS:
@@ -289,7 +328,13 @@ def _hand_terms(side: str) -> list[tuple[Term, ...]]:
 #: Component -> (point names, the terms of each point).
 POINTS: dict[str, tuple[tuple[str, ...], tuple[tuple[Term, ...], ...]]] = {
     "POSE_LANDMARKS": (POSE_POINTS, tuple(_pose_point_terms(p) for p in POSE_POINTS)),
-    "FACE_LANDMARKS": (tuple(FACE_SITES), tuple((_s(s),) for s in FACE_SITES.values())),
+    "FACE_LANDMARKS": (
+        (*FACE_SITES, *(i for i in FACE_RIG if i not in FACE_SITES)),
+        (
+            *(_face(i, s) for i, s in FACE_SITES.items()),
+            *(_face(i, FACE_RIG[i][0]) for i in FACE_RIG if i not in FACE_SITES),
+        ),
+    ),
     "LEFT_HAND_LANDMARKS": (HAND_POINTS, tuple(_hand_terms("L"))),
     "RIGHT_HAND_LANDMARKS": (HAND_POINTS, tuple(_hand_terms("R"))),
 }
@@ -332,7 +377,23 @@ def keypoints(
     return out
 
 
+def _carried(model: mujoco.MjModel, t: Term, smap: SignerMap) -> tuple[int, np.ndarray]:
+    """The body carrying ``t`` and the point's offset in that body's frame (from qpos0)."""
+    s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, smap.sites[t.site])
+    if s < 0:
+        raise AzeeError(f".pose export: the model has no site {smap.sites[t.site]!r}")
+    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, t.carrier)
+    b = int(model.site_bodyid[s]) if b < 0 else b
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    p = data.site_xpos[s] + np.asarray(t.offset, float)
+    return b, data.xmat[b].reshape(3, 3).T @ (p - data.xpos[b])
+
+
 def _resolve(model, t: Term, smap: SignerMap):
+    if t.carrier is not None:
+        b, off = _carried(model, t, smap)
+        return (t.weight, -1, b, off)
     if t.site is not None:
         s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, smap.sites[t.site])
         if s < 0:
@@ -346,7 +407,7 @@ def _resolve(model, t: Term, smap: SignerMap):
 
 
 def _face_limbs() -> list[tuple[int, int]]:
-    idx = {n: i for i, n in enumerate(FACE_SITES)}
+    idx = {n: i for i, n in enumerate(POINTS["FACE_LANDMARKS"][0])}
     return [(idx[a], idx[b]) for a, b in FACE_LIMBS_BY_NAME]
 
 

@@ -226,30 +226,33 @@ FACE_SITES = {
     "93": "LOBE_R",
     "323": "LOBE_L",
 }
-#: Face points carried by the rig's face parts: face-mesh index -> (AZee site, model body
-#: that moves it, offset from the site at rest [m]). The brows and mouth corners ride on
-#: their bodies; the upper eyelids' margins (159, 386) on the lids, 12.5 mm from the eye's
-#: centre, 20 degrees above its axis; the lower lids' (145, 374) 35 degrees below; the lower
-#: lip (14) on the jaw.
+#: Face points carried by the rig's face parts: face-mesh index -> (AZee site, the model
+#: bodies that move it, offset from the site at rest [m, signer frame]). A point carried by
+#: two bodies is their mean (the lips' two halves meet on the midline). The brows (105, 107
+#: on the inner brow, 70 on the outer) and mouth corners ride on their bodies; the upper
+#: lids' margins (159, 386) on the lids, where the lid meets the eyeball in front (11.9 mm
+#: from the eye's centre, 26 degrees above its axis); the lower lids' (145, 374) 30 degrees
+#: below; the lips' inner edges (13, 14) on the upper and lower lip on the midline.
 FACE_RIG = {
     **{
-        i: (site, f"brow_{site[-1]}", (0.0, 0.0, 0.0))
-        for i, site in (
-            ("105", "EB_R"),
-            ("334", "EB_L"),
-            ("107", "EBi_R"),
-            ("336", "EBi_L"),
-            ("70", "EBe_R"),
-            ("300", "EBe_L"),
+        i: (site, (body + site[-1],), (0.0, 0.0, 0.0))
+        for i, site, body in (
+            ("105", "EB_R", "brow_"),
+            ("334", "EB_L", "brow_"),
+            ("107", "EBi_R", "brow_"),
+            ("336", "EBi_L", "brow_"),
+            ("70", "EBe_R", "brow_out_"),
+            ("300", "EBe_L", "brow_out_"),
+            ("61", "MO_R", "mouth_"),
+            ("291", "MO_L", "mouth_"),
         )
     },
-    "61": ("MO_R", "mouth_R", (0.0, 0.0, 0.0)),
-    "291": ("MO_L", "mouth_L", (0.0, 0.0, 0.0)),
-    "159": ("EYE_R", "lid_R", (-0.00075, 0.0, 0.00428)),
-    "386": ("EYE_L", "lid_L", (-0.00075, 0.0, 0.00428)),
-    "145": ("EYE_R", "lid_lower_R", (-0.00226, 0.0, -0.00717)),
-    "374": ("EYE_L", "lid_lower_L", (-0.00226, 0.0, -0.00717)),
-    "14": ("MO", "jaw", (-0.0012, 0.0, -0.0064)),
+    "159": ("EYE_R", ("lid_R",), (-0.00172, 0.0, 0.00526)),
+    "386": ("EYE_L", ("lid_L",), (-0.00172, 0.0, 0.00526)),
+    "145": ("EYE_R", ("lid_low_R",), (-0.00212, 0.0, -0.00601)),
+    "374": ("EYE_L", ("lid_low_L",), (-0.00212, 0.0, -0.00601)),
+    "13": ("MO", ("lip_up_R", "lip_up_L"), (-0.002744, 0.0, -0.002854)),
+    "14": ("MO", ("lip_low_R", "lip_low_L"), (-0.003744, 0.0, -0.003954)),
 }
 #: Lines drawn between face points (brows, eyes, nose, mouth, the side of the face).
 FACE_LIMBS_BY_NAME = (
@@ -313,8 +316,9 @@ def _pose_point_terms(name: str) -> tuple[Term, ...]:
 def _face(index: str, site: str) -> tuple[Term, ...]:
     if index not in FACE_RIG:
         return (_s(site),)
-    site, carrier, offset = FACE_RIG[index]
-    return (Term(site=site, carrier=carrier, offset=offset),)
+    site, carriers, offset = FACE_RIG[index]
+    w = 1.0 / len(carriers)
+    return tuple(Term(w, site=site, carrier=c, offset=offset) for c in carriers)
 
 
 def _hand_terms(side: str) -> list[tuple[Term, ...]]:

@@ -117,7 +117,7 @@ VISEME_WEIGHTS: dict[str, dict[str, float]] = {
     },
     "nn": {"jawOpen": 0.15, "mouthStretchLeft": 0.1, "mouthStretchRight": 0.1},
     "RR": {"mouthFunnel": 0.3, "mouthPucker": 0.3, "jawOpen": 0.1},
-    "aa": {"jawOpen": 0.6, "mouthLowerDownLeft": 0.2, "mouthLowerDownRight": 0.2},
+    "aa": {"jawOpen": 0.75, "mouthLowerDownLeft": 0.2, "mouthLowerDownRight": 0.2},
     "E": {
         "jawOpen": 0.35,
         "mouthStretchLeft": 0.3,
@@ -265,8 +265,8 @@ def visemes(phones: tuple[str, ...] | list[str]) -> tuple[str, ...]:
 
 def coarticulated(seq: tuple[str, ...], times: list[float]) -> list[dict[str, float]]:
     """The blended weights at each key time: the dominance-weighted mean of every viseme's
-    target (Cohen & Massaro 1993, exponent 1); a :data:`CLOSURES` key keeps its own
-    shapes' targets."""
+    target (Cohen & Massaro 1993, exponent 1); a :data:`CLOSURES` key is its own target
+    alone (the shapes it does not name at 0: a neighbour's open jaw would part the lips)."""
     shapes = sorted({n for v in seq for n in VISEME_WEIGHTS[v]})
     out = []
     for t in times:
@@ -278,8 +278,8 @@ def coarticulated(seq: tuple[str, ...], times: list[float]) -> list[dict[str, fl
         }
         out.append(w)
     for w, v in zip(out, seq):
-        if v in CLOSURES:
-            w.update(VISEME_WEIGHTS[v])
+        if v in CLOSURES:  # the lips meet: no jaw or lip opening blended in from neighbours
+            w.update({n: VISEME_WEIGHTS[v].get(n, 0.0) for n in w})
     return out
 
 

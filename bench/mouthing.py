@@ -7,32 +7,23 @@ Compiles and realizes at 50 fps, multitrack, on one core, :data:`FACED` (every s
 mouthed or carrying a question, mouth gesture or corpus expression) and :data:`PLAIN`
 (the same signs in sequence), best of N realizations each; writes
 bench/results/mouthing.json and prints the markdown rows of docs/benchmarks.md.
-
-Until the face rig's ARKit morphs are in the catalogue the scores are realized on a
-stand-in catalogue: the bundled one plus every ARKit name, the shapes the older face has
-(brows, lids, jaw, mouth corners; ``azee_mj.export.arkit.LEGACY``) moving their joints and
-the others moving nothing. The results say which was used.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import time
 from pathlib import Path
-from types import MappingProxyType
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from machine import machine
 
-from azee_mj import arkit, schedule, timeline
+from azee_mj import schedule, timeline
 from azee_mj.azee import compile_text
-from azee_mj.export import arkit as face
 from azee_mj.score import load_score
-from azee_mj.sites import DEFAULT_MAP, Morph
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -49,37 +40,19 @@ FACED = """\
 PLAIN = ":seq(:arbre, :bien, :penser, :armoire, :cinema)"
 
 
-def stand_in_map():
-    """The bundled catalogue plus the ARKit names it lacks (module docstring)."""
-    morphs = dict(DEFAULT_MAP.morphs)
-    for name in (*arkit.ARKIT_SHAPES, *arkit.PAIRS):
-        if name in morphs:
-            continue
-        ch: dict[str, float] = {}
-        sided = name in arkit.PAIRS
-        key = f"{name}Left" if sided else name
-        if key in face.LEGACY:
-            m, s, w = face.LEGACY[key]
-            ch = {j: w * v for j, v in DEFAULT_MAP.morphs[m].joint_changes(s).items()}
-            if sided:
-                ch = {j.replace("_L_", "_{X}_"): v for j, v in ch.items()}
-        morphs[name] = Morph(MappingProxyType(ch), sided)
-    return dataclasses.replace(DEFAULT_MAP, morphs=MappingProxyType(morphs))
-
-
-def run(text: str, smap, repeats: int) -> dict:
+def run(text: str, repeats: int) -> dict:
     t0 = time.perf_counter()
     raw = compile_text(text)
     compile_s = time.perf_counter() - t0  # the first: espeak-ng's voices load once
     t0 = time.perf_counter()
     compile_text(text)
     warm_s = time.perf_counter() - t0
-    score = load_score(raw, smap)
-    solver = schedule.make_solver(signer_map=smap)
+    score = load_score(raw)
+    solver = schedule.make_solver()
     best, r = float("inf"), None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        r = timeline.realize(score, fps=50, solver=solver, signer_map=smap)
+        r = timeline.realize(score, fps=50, solver=solver)
         best = min(best, time.perf_counter() - t0)
     blocks = sum(1 for b in score.blocks() if b.kind.value != "sync")
     return {
@@ -99,13 +72,10 @@ def main() -> int:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--quick", action="store_true", help="one realization each")
     a = p.parse_args()
-    ready = all(n in DEFAULT_MAP.morphs for n in (*arkit.ARKIT_SHAPES, *arkit.PAIRS))
-    smap = DEFAULT_MAP if ready else stand_in_map()
     repeats = 1 if a.quick else a.repeats
     out = {
-        "catalogue": "bundled (ARKit morphs)" if ready else "stand-in (ARKit morphs missing)",
-        "faced": {"expression": FACED, **run(FACED, smap, repeats)},
-        "plain": {"expression": PLAIN, **run(PLAIN, smap, repeats)},
+        "faced": {"expression": FACED, **run(FACED, repeats)},
+        "plain": {"expression": PLAIN, **run(PLAIN, repeats)},
         "machine": machine(),
     }
     f, pl = out["faced"], out["plain"]

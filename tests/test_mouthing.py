@@ -3,14 +3,17 @@ phonemes, timing, coarticulation, human speed, errors, and realization on the si
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
 from azee_mj import arkit, mouthing
+from azee_mj import face as face_mod
 from azee_mj.azee import ExpressionError, compile_file, compile_text, parse
 from azee_mj.azee.catalogue import quote
 from azee_mj.azee.nonmanual import EXPRESSIONS, GESTURES
@@ -298,16 +301,65 @@ def test_an_arkit_weight_out_of_range_or_an_unknown_shape_is_one_message():
 
 
 @needs_phonemizer
-def test_the_documented_example_compiles_and_realizes():
+def test_the_documented_example_closes_the_lips_and_blinks(model):
+    """docs/examples/mouthing.azee (face-question.gif): the lips meet at every "m" and "b"
+    (a lip closure's key is its own shapes alone), open wider for "a" than for "o", and
+    the eyes close at the boundary, as the rig's apertures measure them."""
     path = Path(__file__).resolve().parent.parent / "docs" / "examples" / "mouthing.azee"
     s = compile_file(path)
     names = {b["name"] for b in _walk(s["root"])}
     assert {"FACE", "HEAD", "BLINK", "VISEME_0"} <= names
-    r = realize(load_score(s), fps=25.0, solver=make_solver())
+    score = load_score(s)
+    r = realize(score, fps=50.0, solver=make_solver())
     assert all(t.ok for t in r.traces), [t.describe() for t in r.traces if not t.ok]
+    d = mujoco.MjData(model)
+
+    def apertures(t: float) -> tuple[float, float]:
+        d.qpos[:] = r.qpos[round(t * r.fps)]
+        mujoco.mj_kinematics(model, d)
+        return face_mod.lip_aperture(model, d), face_mod.eyelid_aperture(model, d, "R")
+
+    keys = {}
+    for b in score.blocks():
+        ids = {c.id: c.weight for c in getattr(b, "constraints", ()) if hasattr(c, "id")}
+        if b.name.startswith("VISEME_") and ids.get("mouthPress") == 0.5:
+            keys.setdefault("PP", []).append(b.start)
+        if b.name.startswith("VISEME_") and "mouthFunnel" in ids and not keys.get("oh"):
+            keys["oh"] = [b.start]  # the first rounded key: "au"
+        if b.name.startswith("VISEME_") and ids.get("mouthLowerDown", 0.0) > 0.1:
+            keys["aa"] = [b.start]  # the open "a" of cinéma
+        if b.name == "BLINK":
+            keys["BLINK"] = [b.start + 0.04]
+    assert len(keys["PP"]) == 2  # the "m" of cinéma, the "b" of bien
+    assert all(apertures(t)[0] == 0.0 for t in keys["PP"])
+    assert apertures(keys["BLINK"][0])[1] == 0.0
+    assert apertures(keys["aa"][0])[0] > apertures(keys["oh"][0])[0] + 0.001
 
 
 def _walk(block: dict):
     yield block
     for c in block.get("children", ()):
         yield from _walk(c)
+
+
+@pytest.mark.parametrize(
+    ("mid", "weight", "problem"),
+    [
+        ("jawOpen", 1.5, "field 'weight': weight 1.5 is out of range; ARKit shapes take 0 to 1"),
+        ("eyeBlink", -0.2, "field 'weight': weight -0.2 is out of range; ARKit shapes take 0 to 1"),
+        ("jawOpn", 0.5, "field 'id': unknown morph 'jawOpn'"),
+    ],
+)
+def test_a_bad_face_morph_in_a_score_exits_2_with_the_block_path(
+    mid, weight, problem, tmp_path, capsys
+):
+    src, out = tmp_path / "face.json", tmp_path / "face.npz"
+    src.write_text(json.dumps(_face_score(mid, weight)))
+    assert main(["realize", str(src), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"azee-mj: error: S.FACE: constraint 1 (morph): {problem}"), err
+    if mid == "jawOpn":
+        assert err.endswith("did you mean 'jawOpen'?\n"), err
+    else:
+        assert err == f"azee-mj: error: S.FACE: constraint 1 (morph): {problem}\n"
+    assert not out.exists()

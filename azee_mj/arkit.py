@@ -11,9 +11,14 @@ acts on, ``{Y}`` the other side; the rig's left joints mirror the right ones, so
 values give the mirrored motion. The midline joints that a side's shape moves one way on
 the right and the other way on the left (the jaw's sideways slide, the eyes' conjugate yaw)
 are listed in ``FLIPPED``. Units: radians (hinges), metres (slides), at weight 1.
+
+A weight is in [0, 1]. :func:`constraints` writes a set of weights as score constraints, a
+Left/Right pair with equal weights as its base name without a side (both sides).
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 #: The 52 blend shapes, in the order of ARKit's ``ARFaceAnchor.BlendShapeLocation`` list as
 #: Live Link Face writes its columns.
@@ -215,3 +220,48 @@ def shape_changes() -> dict[str, dict[str, float]]:
         for side, suffix in SIDE_SUFFIX.items():
             out[base + suffix] = side_changes(ch, side)
     return {name: out[name] for name in ARKIT_SHAPES}
+
+
+#: Bases of the Left/Right pairs whose two sides add up (``eyeBlink`` for ``eyeBlinkLeft``
+#: and ``eyeBlinkRight``). ``mouthLeft`` / ``mouthRight`` and ``jawLeft`` / ``jawRight`` are
+#: movements toward a side: the same weight on both cancels, so they are not written as one.
+PAIRS: tuple[str, ...] = tuple(
+    n.removesuffix("Left")
+    for n in ARKIT_SHAPES
+    if n.endswith("Left") and n not in ("mouthLeft", "jawLeft")
+)
+
+
+def split(name: str) -> tuple[str, str | None]:
+    """``("eyeBlink", "L")`` for ``eyeBlinkLeft``; ``(name, None)`` for an unpaired one."""
+    for suffix, side in (("Left", "L"), ("Right", "R")):
+        base = name.removesuffix(suffix)
+        if base != name and base in PAIRS:
+            return base, side
+    return name, None
+
+
+def is_shape(name: str) -> bool:
+    """Whether ``name`` is an ARKit shape or a pair's base (the morphs weighted in [0, 1])."""
+    return name in ARKIT_SHAPES or name in PAIRS or name in SIDED
+
+
+def constraints(weights: Mapping[str, float], digits: int = 3) -> list[dict]:
+    """Score morph constraints for ``weights`` (ARKit name -> [0, 1]), rounded to
+    ``digits`` decimals, zero weights kept (they return a shape to rest). A pair with equal
+    weights becomes its base name without a side; the order follows :data:`ARKIT_SHAPES`."""
+    out: list[dict] = []
+    done: set[str] = set()
+    for name in ARKIT_SHAPES:
+        if name not in weights or name in done:
+            continue
+        base, side = split(name)
+        w = round(float(weights[name]), digits)
+        if side is not None:
+            other = base + ("Right" if side == "L" else "Left")
+            if other in weights and round(float(weights[other]), digits) == w:
+                out.append({"type": "morph", "id": base, "weight": w})
+                done.add(other)
+                continue
+        out.append({"type": "morph", "id": name, "weight": w})
+    return out

@@ -21,6 +21,7 @@ EXTRAS = {
     "render": ("imageio", "imageio_ffmpeg", "PIL"),
     "plot": ("matplotlib",),
     "export": ("pygltflib", "bvhio", "pose_format"),
+    "mouthing": ("phonemizer",),
 }
 
 

@@ -11,7 +11,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from azee_mj import arkit
 from azee_mj.azee import RULES, ExpressionError, Lexicon, compile_file, compile_text, parse
+from azee_mj.azee.nonmanual import EXPRESSIONS, GESTURES
 from azee_mj.check import check_poses
 from azee_mj.cli import main
 from azee_mj.model import load_model
@@ -49,6 +51,12 @@ def _assert_times(score: dict, expected: dict[str, tuple[str, float, float]]) ->
         assert path in tree, (path, sorted(tree))
         k, s2, e2 = tree[path]
         assert k == kind and abs(s2 - s) <= TOL and abs(e2 - e) <= TOL, (path, tree[path])
+
+
+def _walk(block: dict):
+    yield block
+    for c in block.get("children", ()):
+        yield from _walk(c)
 
 
 def _block(score: dict, path: str) -> dict:
@@ -97,6 +105,8 @@ def test_worked_example_b_nicht_sondern():
         f"{n}.NEGATED.NICHT_HOLD": ("hold", 1.2, 2.0),
         f"{n}.NEGATED.HEADSHAKE": ("sync", 1.2, 2.0),
         f"{n}.NEGATED.HEADSHAKE.GAZE": ("cstr", 0, 0.8),
+        f"{n}.NEGATED.FROWN": ("cstr", 1.2, 1.85),
+        f"{n}.NEGATED.FROWN_RELAX": ("cstr", 1.95, 2.0),
         f"{n}.SONDERN": ("sync", 2.0, 3.3),
     }
     for k in range(4):
@@ -325,7 +335,7 @@ def test_every_rule_gives_a_valid_score(text):
 
 
 def test_every_rule_is_exercised_and_documented():
-    used = {t.split("(")[0][1:] for t in EVERY_RULE}
+    used = {t.split("(")[0][1:] for t in [*EVERY_RULE, *NONMANUAL]}
     for r in RULES:
         assert r.source and r.summary and r.approximated
         assert r.name in used or not r.implemented
@@ -335,6 +345,63 @@ def test_every_rule_is_exercised_and_documented():
         ]
         == "INFO"
     )  # no blink when the info is an info-about
+
+
+#: One application of every non-manual rule (their ARKit morphs are the face rig's).
+NONMANUAL = [
+    ":yes-no-question(:bien)",
+    ":wh-question(:penser)",
+    ":boundary(:arbre, 'pause 0.3)",
+    *(f':mouth-gesture(:arbre, "{g}")' for g in GESTURES),
+    ':mouthing(:arbre, "arbre", \'lang "fr")',
+    *(f":{name}(:bien)" for name in EXPRESSIONS),
+]
+
+
+@pytest.mark.parametrize("text", NONMANUAL)
+def test_nonmanual_rules_give_arkit_morphs_in_range(text):
+    if "mouthing" in text:
+        pytest.importorskip("phonemizer", reason="mouthing needs the [mouthing] extra")
+    s = compile_text(text)
+    face = [c for c in s["root"]["children"] if c["name"] != "SIG"]
+    cons = [
+        c for f in face for b in _walk(f) for c in b.get("constraints", ()) if c["type"] == "morph"
+    ]
+    assert cons
+    for c in cons:
+        assert c["id"] in arkit.ARKIT_SHAPES or c["id"] in arkit.PAIRS, c
+        assert c["id"] in DEFAULT_MAP.morphs, c
+        assert 0.0 <= c["weight"] <= 1.0
+    assert s["root"]["end"] == pytest.approx(
+        _block(s, f"{s['root']['name']}.SIG")["end"] + (0.3 if "boundary" in text else 0.0)
+    )
+
+
+@pytest.mark.parametrize("text", NONMANUAL)
+def test_nonmanual_rules_load(text):
+    if "mouthing" in text:
+        pytest.importorskip("phonemizer", reason="mouthing needs the [mouthing] extra")
+    load_score(compile_text(text))
+    load_score(compile_text(text, strong_side="L"))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        *NONMANUAL[:3],
+        ':mouth-gesture(:bien, "pah")',
+        ':mouth-gesture(:armoire, "puff")',
+        ':mouthing(:arbre, "arbre", \'lang "fr")',
+        ":with-surprise(:cinema)",
+        ":too-scared-to-look(:penser)",
+        ":info-about(:cinema, :yes-no-question(:bien))",
+    ],
+)
+def test_nonmanual_rules_realize_within_tolerance(text):
+    if "mouthing" in text:
+        pytest.importorskip("phonemizer", reason="mouthing needs the [mouthing] extra")
+    r = realize(compile_text(text), fps=25.0, solver=make_solver())
+    assert all(t.ok for t in r.traces), [t.describe() for t in r.traces if not t.ok]
 
 
 @pytest.mark.parametrize("name", Lexicon().names())
@@ -557,7 +624,7 @@ ERRORS = [
         ":seq(:bien, $x)",
         (
             "<-e>:1:13: syntax: unexpected character '$'; an expression starts "
-            "with :name, ^locus, .atom, 'label or a number"
+            'with :name, ^locus, .atom, \'label, a number or a "text"'
         ),
     ),
 ]

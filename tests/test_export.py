@@ -13,10 +13,12 @@ import mujoco
 import numpy as np
 import pytest
 
+from azee_mj import arkit
 from azee_mj.azee import compile_text
 from azee_mj.cli import main
 from azee_mj.errors import OutputError
 from azee_mj.export import Motion, export, load_motion
+from azee_mj.export import arkit as face
 from azee_mj.export import bvh as bvh_mod
 from azee_mj.export import motion as mo
 from azee_mj.export import pose as pose_mod
@@ -285,6 +287,17 @@ def test_bvh_euler_order_keeps_the_middle_angle_away_from_gimbal_lock():
 
 
 def _term_value(model, data, t: pose_mod.Term) -> np.ndarray:
+    if t.carrier is not None:  # the site's rest position (+ offset), carried by the body
+        rest = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, rest)
+        name = (
+            t.carrier
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, t.carrier) >= 0
+            else (model.body(model.site(DEFAULT_MAP.sites[t.site]).bodyid[0]).name)
+        )
+        p0 = rest.site(DEFAULT_MAP.sites[t.site]).xpos + np.asarray(t.offset)
+        local = rest.body(name).xmat.reshape(3, 3).T @ (p0 - rest.body(name).xpos)
+        return data.body(name).xpos + data.body(name).xmat.reshape(3, 3) @ local
     if t.site is not None:
         return data.site(DEFAULT_MAP.sites[t.site]).xpos
     body = DEFAULT_MAP.bones[t.bone].body if t.bone else t.body
@@ -299,7 +312,7 @@ def test_pose_keypoints_match_the_sites_on_every_frame(model, motion, tmp_path):
     out = export(motion, tmp_path / "m.pose")
     p = Pose.read(out.read_bytes())
     assert p.body.fps == pytest.approx(motion.fps)
-    assert p.body.data.shape == (len(motion.qpos), 1, 100, 3)
+    assert p.body.data.shape == (len(motion.qpos), 1, 105, 3)
     assert np.all(p.body.confidence == 1.0)
     pts = pose_mod.pose_to_signer(np.asarray(p.body.data[:, 0]))
     data = mujoco.MjData(model)
@@ -372,9 +385,11 @@ def test_csv_rows_are_the_site_positions(model, rollout, realized, tmp_path):
     with open(out, newline="") as f:
         rows = list(csv.reader(f))
     names = columns()
-    assert rows[0] == ["time", *(f"{n}_{a}" for n in names for a in "xyz")]
+    assert rows[0] == ["time", *(f"{n}_{a}" for n in names for a in "xyz"), *arkit.ARKIT_SHAPES]
     table = np.array(rows[1:], float)
-    assert table.shape == (len(rollout.time), 1 + 3 * len(names))
+    assert table.shape == (len(rollout.time), 1 + 3 * len(names) + 52)
+    np.testing.assert_allclose(table[:, -52:], face.weights(model, rollout.qpos), atol=1e-8)
+    table = table[:, :-52]
     np.testing.assert_allclose(table[:, 0], rollout.time, atol=1e-9)
     pos = table[:, 1:].reshape(len(table), len(names), 3)
     S = len(rollout.site_names)
@@ -444,7 +459,7 @@ def test_unknown_suffix_is_one_message_and_no_file(tmp_path, capsys):
     err = _exit2(["export", str(DATA / "good.json"), "-o", str(out)], capsys)
     assert err == (
         f"azee-mj: error: {out}: unknown export suffix '.fbx'; use one of .glb, "
-        ".gltf, .bvh, .pose, .csv, .html\n"
+        ".gltf, .bvh, .pose, .livelink.csv, .csv, .html\n"
     )
     assert list(tmp_path.iterdir()) == []
 

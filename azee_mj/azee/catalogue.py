@@ -17,6 +17,7 @@ KINDS = {
     "locus": "a locus (^ssp, ^Rssp, ^Lssp)",
     "digit": "a digit (.nb-0 to .nb-9)",
     "num": "a number",
+    "text": 'a text in double quotes ("maison")',
 }
 LOCI = ("ssp", "Rssp", "Lssp")
 DIGITS = tuple(f"nb-{n}" for n in range(10))
@@ -42,7 +43,7 @@ class Param:
         if self.list:
             s += "+" if self.min_items <= 1 else f" {self.min_items}+"
         elif self.default is not None:
-            s += f"={fmt_value(self.default)}"
+            s += f"={quote(self.default) if self.kind == 'text' else fmt_value(self.default)}"
         return s
 
     def to_json(self) -> dict:
@@ -58,10 +59,15 @@ def fmt_value(v: Any) -> str:
     return str(v)
 
 
+def quote(text: str) -> str:
+    """A text as written in ``.azee`` text: in double quotes, ``"`` and ``\\`` escaped."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
 @dataclasses.dataclass(frozen=True)
 class Lit:
-    """A locus (``value`` ``"^Rssp"``), a digit (``value`` 5, ``text`` ``.nb-5``) or a
-    number."""
+    """A locus (``value`` ``"^Rssp"``), a digit (``value`` 5, ``text`` ``.nb-5``), a
+    number or a text (``value`` the string, ``text`` it quoted)."""
 
     kind: str
     value: Any

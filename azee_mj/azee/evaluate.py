@@ -25,9 +25,11 @@ from azee_mj.azee.catalogue import (
     block_name,
     fmt_value,
     look,
+    quote,
 )
 from azee_mj.azee.errors import ExpressionError
 from azee_mj.azee.lexicon import Lexicon, Sign, fill
+from azee_mj.azee.nonmanual import RuleProblem
 from azee_mj.azee.rules import BY_NAME, RULES
 from azee_mj.azee.syntax import App, Arg, Atom, Node, parse
 from azee_mj.errors import ScoreError
@@ -36,7 +38,7 @@ from azee_mj.score import load_score
 MAX_DEPTH = 64
 #: Decimals output times are rounded to [s].
 TIME_DECIMALS = 9
-_ATOM_KIND = {"locus": "locus", "atom": "digit", "num": "num"}
+_ATOM_KIND = {"locus": "locus", "atom": "digit", "num": "num", "text": "text"}
 
 
 def _close(name: str, valid) -> str | None:
@@ -52,8 +54,52 @@ def _kind_of(node: Node) -> str:
 def _describe(node: Node) -> str:
     if isinstance(node, App):
         return f"score :{node.name}"
+    if node.kind == "text":
+        return f"text {quote(node.text)}"
     sigil = {"locus": "^", "atom": ".", "num": ""}[node.kind]
     return f"{_kind_of(node)} {sigil}{node.text}"
+
+
+def _err(file: str, problem: str, line: int, col: int, path: str) -> ExpressionError:
+    return ExpressionError(problem, file=file, line=line, col=col, path=path)
+
+
+def _atom(node: Atom, path: str, file: str) -> Lit:
+    """The value of a locus, digit, number or text atom; ``path`` and ``file`` for errors."""
+    if node.kind == "locus":
+        if node.text not in LOCI:
+            m = _close(node.text, LOCI)
+            hint = f"; did you mean '^{m}'? Valid" if m else "; valid"
+            raise _err(
+                file,
+                f"unknown locus '^{node.text}'{hint} loci are ^ssp, ^Rssp, ^Lssp",
+                node.line,
+                node.col,
+                path or "syntax",
+            )
+        return Lit("locus", f"^{node.text}", f"^{node.text}")
+    if node.kind == "atom":
+        if node.text not in DIGITS:
+            raise _err(
+                file,
+                f"unknown atom '.{node.text}'; atoms are .nb-0 to .nb-9",
+                node.line,
+                node.col,
+                path or "syntax",
+            )
+        return Lit("digit", int(node.text[3:]), f".{node.text}")
+    if node.kind == "text":
+        return Lit("text", node.text, quote(node.text))
+    return Lit("num", node.value, fmt_value(node.value))
+
+
+def _default(p: Param, keep_lits: bool) -> Any:
+    """A parameter's default: a float, or a :class:`Lit` (``keep_lits``, or not a number)."""
+    if p.kind == "num":
+        return Lit("num", float(p.default), fmt_value(p.default)) if keep_lits else float(p.default)
+    if p.kind == "text":
+        return Lit("text", p.default, quote(p.default))
+    return Lit(p.kind, p.default, fmt_value(p.default))
 
 
 class _Evaluator:
@@ -72,7 +118,7 @@ class _Evaluator:
     # -- values -------------------------------------------------------------------------
     def value(self, node: Node, path: str) -> Lit | ScoreVal:
         if isinstance(node, Atom):
-            return self.atom(node, path)
+            return _atom(node, path, self.file)
         here = f"{path}:{node.name}"
         if node.name.startswith("azop"):
             raise self.err(
@@ -101,6 +147,9 @@ class _Evaluator:
                 saved, self.where = self.where, (node.line, node.col, here)
                 try:
                     return rule.build(self, args, head)
+                except RuleProblem as p:
+                    at = f"{here}'{p.label}" if p.label else here
+                    raise self.err(p.problem, node.line, node.col, at) from None
                 finally:
                     self.where = saved
             if node.name in self.lex:
@@ -123,29 +172,6 @@ class _Evaluator:
             )
         finally:
             self.depth -= 1
-
-    def atom(self, node: Atom, path: str) -> Lit:
-        if node.kind == "locus":
-            if node.text not in LOCI:
-                m = _close(node.text, LOCI)
-                hint = f"; did you mean '^{m}'? Valid" if m else "; valid"
-                raise self.err(
-                    f"unknown locus '^{node.text}'{hint} loci are ^ssp, ^Rssp, ^Lssp",
-                    node.line,
-                    node.col,
-                    path or "syntax",
-                )
-            return Lit("locus", f"^{node.text}", f"^{node.text}")
-        if node.kind == "atom":
-            if node.text not in DIGITS:
-                raise self.err(
-                    f"unknown atom '.{node.text}'; atoms are .nb-0 to .nb-9",
-                    node.line,
-                    node.col,
-                    path or "syntax",
-                )
-            return Lit("digit", int(node.text[3:]), f".{node.text}")
-        return Lit("num", node.value, fmt_value(node.value))
 
     # -- arguments ------------------------------------------------------------------------
     def bind(
@@ -206,7 +232,7 @@ class _Evaluator:
                         node.col,
                         here,
                     )
-                out[p.name] = self.default(p, keep_lits)
+                out[p.name] = _default(p, keep_lits)
                 continue
             if p.list and len(given) < p.min_items:
                 a = given[-1]
@@ -236,15 +262,6 @@ class _Evaluator:
             out[p.name] = vals if p.list else vals[0]
         head = f"{callee}({', '.join(parts)})" if parts else callee
         return out, head, set(assigned)
-
-    def default(self, p: Param, keep_lits: bool) -> Any:
-        if p.kind == "num":
-            return (
-                Lit("num", float(p.default), fmt_value(p.default))
-                if keep_lits
-                else float(p.default)
-            )
-        return Lit(p.kind, p.default, fmt_value(p.default))
 
     def check_num(self, p: Param, v: Lit, node: Node, here: str) -> None:
         if p.minimum is None:
@@ -339,7 +356,7 @@ class _Evaluator:
             elif p.default is None:
                 raise self.err(f"this rule needs :{name} to default its '{p.name}", line, col, here)
             else:
-                given[p.name] = self.default(p, True)
+                given[p.name] = _default(p, True)
         parts = [f"'{k} {v.text}" for k, v in params.items()]
         head = f":{name}({', '.join(parts)})" if parts else f":{name}"
         return self.apply_sign(sign, given, head, params)
@@ -353,7 +370,7 @@ class _Evaluator:
             p.name == "loc" and p.kind == "locus" for p in sign.params
         )
         if has_loc and "loc" not in val.given:
-            given = {p.name: val.given.get(p.name) or self.default(p, True) for p in sign.params}
+            given = {p.name: val.given.get(p.name) or _default(p, True) for p in sign.params}
             given["loc"] = locus
             s, e = tl.put("SIG", self.apply_sign(sign, given, val.head, val.given))
             tl.cstr("GAZE", s, e, [look(locus.value)])

@@ -16,6 +16,7 @@ import math
 from collections.abc import Mapping
 from typing import Any, Protocol
 
+from azee_mj.azee import nonmanual
 from azee_mj.azee.catalogue import (
     Lit,
     Param,
@@ -30,6 +31,8 @@ from azee_mj.azee.catalogue import (
 
 #: The point the "deep gaze" of a negation looks at (1.5 m ahead at eye level) [m].
 NEG_GAZE_AT = [1.5, 0.0, 0.69]
+#: The negation's frown over the manual hold.
+FROWN = morph("brows_frown", 0.6)
 #: Lean direction toward each locus (signer frame).
 LOCUS_SIDE = {"^Rssp": "right", "^Lssp": "left", "^ssp": "fwd"}
 
@@ -154,6 +157,11 @@ def _nicht_sondern(ctx: Context, a: dict, head: str) -> ScoreVal:
         shake.cstr(f"TURN_{k}", 0.2 * k, 0.2 * k + 0.08, [head_along(along("fwd", (side, 0.22)))])
     shake.cstr("GAZE", 0.0, d, [look(list(NEG_GAZE_AT))])
     neg.put("HEADSHAKE", shake.value("", "headshake"), at=e)
+    if d > 2 * (nonmanual.RELAX_S + nonmanual.RELEASE_S):
+        neg.cstr("FROWN", e, e + d - nonmanual.RELAX_S - nonmanual.RELEASE_S, [FROWN])
+        neg.cstr("FROWN_RELAX", e + d - nonmanual.RELAX_S, e + d, [morph("brows_frown", 0.0)])
+    else:
+        neg.cstr("FROWN", e, e + d, [FROWN])
     tl = Timeline()
     tl.put("NEGATED", neg.value("", "negated"))
     tl.put("SONDERN", a["sondern"])
@@ -257,10 +265,12 @@ RULES: tuple[Rule, ...] = (
             Param("neghold", "num", 0.8, minimum=0.0, strict=True),
         ),
         "NEGATED (NICHT, NICHT_HOLD and a HEADSHAKE over the hold: head turns every 0.2 s "
-        "and a deep gaze), then SONDERN",
-        "[N18 sec. 3.1]: 'headshake and deep gaze over a manual hold of X'; [SF22 fig. 1, 5]",
+        "and a deep gaze; FROWN (brows_frown 0.6) over the hold, FROWN_RELAX at its end), "
+        "then SONDERN",
+        "[N18 sec. 3.1]: 'headshake and deep gaze over a manual hold of X'; [SF22 fig. 1, 5]; "
+        "the frown of negation [BSC80]",
         "the headshake as alternating head orientations (0.22 lateral) rather than a trill; "
-        "the gaze point and the timings guessed",
+        "the gaze point, the timings and the frown's weight guessed",
         _nicht_sondern,
         aliases=("not-but",),
     ),
@@ -291,6 +301,8 @@ RULES: tuple[Rule, ...] = (
         implemented=False,
     ),
 )
+
+RULES += nonmanual.rules(Rule)
 
 #: Rule name or alias -> rule.
 BY_NAME: dict[str, Rule] = {n: r for r in RULES for n in (r.name, *r.aliases)}

@@ -2,7 +2,8 @@
 
 Grammar (design contract, section 1)::
 
-    expr  := app | "^" ident | "." ident | number      # locus; atom .nb-0 ... .nb-9
+    expr  := app | "^" ident | "." ident | number | text   # locus; atom .nb-0 ... .nb-9
+    text  := '"' { any character but '"' and '\\', or '\\"' or '\\\\' } '"'   # on one line
     app   := ":" ident [ "(" [ arg {"," arg} ] ")" ]
     arg   := [ "'" ident ] expr
     ident := letter (any script) {letter | digit | "-" | "_"}
@@ -24,8 +25,9 @@ from azee_mj.azee.errors import ExpressionError
 
 @dataclasses.dataclass(frozen=True)
 class Atom:
-    """A locus (``^Rssp``: kind ``locus``), a digit atom (``.nb-5``: ``atom``) or a number
-    (``num``); ``text`` is as written without its sigil, ``value`` the number for ``num``."""
+    """A locus (``^Rssp``: kind ``locus``), a digit atom (``.nb-5``: ``atom``), a number
+    (``num``) or a text (``"maison"``: ``text``); ``text`` is as written without its sigil
+    (a text without its quotes and escapes), ``value`` the number for ``num``."""
 
     kind: str
     text: str
@@ -75,6 +77,7 @@ _WHAT = {
     "locus": "a locus",
     "atom": "an atom",
     "num": "a number",
+    "text": "a text",
     "label": "a label",
     "(": "'('",
     ")": "')'",
@@ -127,6 +130,11 @@ class _Parser:
                         )
                     out.append(_Tok(_SIGILS[c], s[i + 1 : j], ln, col, first))
                     i = j
+                elif c == '"':
+                    text, i = self.text_literal(s, i, ln)
+                    out.append(_Tok("text", text, ln, col, first))
+                    first = False
+                    continue
                 elif c == "?":
                     raise self.err("templates (?x) are not supported; write the value", ln, col)
                 elif m := _NUM.match(s, i):
@@ -135,12 +143,29 @@ class _Parser:
                 else:
                     raise self.err(
                         f"unexpected character {c!r}; an expression starts with "
-                        ":name, ^locus, .atom, 'label or a number",
+                        ':name, ^locus, .atom, \'label, a number or a "text"',
                         ln,
                         col,
                     )
                 first = False
         return out
+
+    def text_literal(self, s: str, i: int, ln: int) -> tuple[str, int]:
+        """The text literal opening at ``s[i]`` (unescaped) and the index after it."""
+        out, j = [], i + 1
+        while j < len(s):
+            c = s[j]
+            if c == '"':
+                return "".join(out), j + 1
+            if c == "\\":
+                if j + 1 < len(s) and s[j + 1] in '"\\':
+                    out.append(s[j + 1])
+                    j += 2
+                    continue
+                raise self.err('bad escape in a text; write \\" or \\\\', ln, j + 1)
+            out.append(c)
+            j += 1
+        raise self.err('unterminated text: a text ends with " on the same line', ln, i + 1)
 
     # -- logical lines ----------------------------------------------------------------------
     def lines(self, toks: list[_Tok]) -> list[list[_Tok]]:
@@ -180,6 +205,8 @@ class _Parser:
             return Atom("atom", t.text, t.line, t.col), i + 1
         if t.kind == "num":
             return Atom("num", t.text, t.line, t.col, float(t.text)), i + 1
+        if t.kind == "text":
+            return Atom("text", t.text, t.line, t.col), i + 1
         raise self.err(f"expected an expression, got {_WHAT[t.kind]}", t.line, t.col)
 
     def arglist(self, toks: list[_Tok], i: int, opener: _Tok) -> tuple[list[Arg], int]:

@@ -13,6 +13,7 @@ suffix     writer                               library (``pip install azee_mj[e
 ``.bvh``   :func:`bvh.write_bvh`                 bvhio
 ``.pose``  :func:`pose.write_pose`               pose-format
 ``.csv``   :func:`csv.write_csv`                 (none)
+``.livelink.csv``  :func:`arkit.write_livelink` (none): the face as Live Link Face writes it
 ``.html``  :func:`player.write_player`           pygltflib (three.js is bundled)
 =========  ===================================  ==========================================
 
@@ -40,6 +41,7 @@ FORMATS = {
     ".gltf": "gltf",
     ".bvh": "bvh",
     ".pose": "pose",
+    ".livelink.csv": "livelink",
     ".csv": "csv",
     ".html": "html",
 }
@@ -118,6 +120,9 @@ def write(
 
 def format_of(output: str | os.PathLike) -> str:
     """The format name of an output path; :class:`AzeeError` for an unknown suffix."""
+    name = Path(output).name.lower()
+    if name.endswith(".livelink.csv"):
+        return "livelink"
     suffix = Path(output).suffix.lower()
     if suffix not in FORMATS:
         raise AzeeError(
@@ -148,6 +153,10 @@ def _writer(fmt: str):
         from azee_mj.export.pose import write_pose
 
         return lambda p, m, mot, smap: write_pose(p, m, mot.qpos, mot.fps, signer_map=smap)
+    if fmt == "livelink":
+        from azee_mj.export.arkit import write_livelink
+
+        return lambda p, m, mot, smap: write_livelink(p, m, mot.qpos, mot.fps, signer_map=smap)
     if fmt == "csv":
         from azee_mj.export.csv import write_csv
 
@@ -168,8 +177,8 @@ def export(
     model: mujoco.MjModel | None = None,
     signer_map: SignerMap = DEFAULT_MAP,
 ) -> Path:
-    """Export a motion to ``output`` (``.glb``, ``.gltf``, ``.bvh``, ``.pose``, ``.csv`` or
-    ``.html``, see :data:`FORMATS`).
+    """Export a motion to ``output`` (``.glb``, ``.gltf``, ``.bvh``, ``.pose``, ``.csv``,
+    ``.livelink.csv`` or ``.html``, see :data:`FORMATS`).
 
     Args:
       source: ``SCORE.json`` (realized first, at ``fps`` frames per second),

@@ -43,13 +43,16 @@ CX, CY = 500.0, 600.0
 @dataclasses.dataclass(frozen=True)
 class Term:
     """``weight`` times one of: AZee ``site``; the head of AZee ``bone``; ``offset`` [m] in
-    the frame of model body ``body``."""
+    the frame of model body ``body``; or, with ``carrier``, the point ``offset`` [m, signer
+    frame] from AZee ``site`` at rest, carried by the model body ``carrier`` (a face part of
+    the rig) or, when the model has no such body, by the site's own body."""
 
     weight: float = 1.0
     site: str | None = None
     bone: str | None = None
     body: str | None = None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    carrier: str | None = None
 
 
 def _s(name: str, w: float = 1.0) -> Term:
@@ -223,6 +226,34 @@ FACE_SITES = {
     "93": "LOBE_R",
     "323": "LOBE_L",
 }
+#: Face points carried by the rig's face parts: face-mesh index -> (AZee site, the model
+#: bodies that move it, offset from the site at rest [m, signer frame]). A point carried by
+#: two bodies is their mean (the lips' two halves meet on the midline). The brows (105, 107
+#: on the inner brow, 70 on the outer) and mouth corners ride on their bodies; the upper
+#: lids' margins (159, 386) on the lids, where the lid meets the eyeball in front (11.9 mm
+#: from the eye's centre, 26 degrees above its axis); the lower lids' (145, 374) 30 degrees
+#: below; the lips' inner edges (13, 14) on the upper and lower lip on the midline.
+FACE_RIG = {
+    **{
+        i: (site, (body + site[-1],), (0.0, 0.0, 0.0))
+        for i, site, body in (
+            ("105", "EB_R", "brow_"),
+            ("334", "EB_L", "brow_"),
+            ("107", "EBi_R", "brow_"),
+            ("336", "EBi_L", "brow_"),
+            ("70", "EBe_R", "brow_out_"),
+            ("300", "EBe_L", "brow_out_"),
+            ("61", "MO_R", "mouth_"),
+            ("291", "MO_L", "mouth_"),
+        )
+    },
+    "159": ("EYE_R", ("lid_R",), (-0.00172, 0.0, 0.00526)),
+    "386": ("EYE_L", ("lid_L",), (-0.00172, 0.0, 0.00526)),
+    "145": ("EYE_R", ("lid_low_R",), (-0.00212, 0.0, -0.00601)),
+    "374": ("EYE_L", ("lid_low_L",), (-0.00212, 0.0, -0.00601)),
+    "13": ("MO", ("lip_up_R", "lip_up_L"), (-0.002744, 0.0, -0.002854)),
+    "14": ("MO", ("lip_low_R", "lip_low_L"), (-0.003744, 0.0, -0.003954)),
+}
 #: Lines drawn between face points (brows, eyes, nose, mouth, the side of the face).
 FACE_LIMBS_BY_NAME = (
     ("70", "105"),
@@ -242,6 +273,10 @@ FACE_LIMBS_BY_NAME = (
     ("454", "323"),
     ("50", "61"),
     ("280", "291"),
+    ("159", "145"),
+    ("386", "374"),
+    ("61", "14"),
+    ("14", "291"),
 )
 
 _HAND_DIGITS = (
@@ -278,6 +313,14 @@ def _pose_point_terms(name: str) -> tuple[Term, ...]:
     return (Term(body="pelvis", offset=(x, y if side == "R" else -y, z)),)
 
 
+def _face(index: str, site: str) -> tuple[Term, ...]:
+    if index not in FACE_RIG:
+        return (_s(site),)
+    site, carriers, offset = FACE_RIG[index]
+    w = 1.0 / len(carriers)
+    return tuple(Term(w, site=site, carrier=c, offset=offset) for c in carriers)
+
+
 def _hand_terms(side: str) -> list[tuple[Term, ...]]:
     out = [(_s(f"WR_{side}"),)]
     for _, bone, letter in _HAND_DIGITS:
@@ -289,7 +332,13 @@ def _hand_terms(side: str) -> list[tuple[Term, ...]]:
 #: Component -> (point names, the terms of each point).
 POINTS: dict[str, tuple[tuple[str, ...], tuple[tuple[Term, ...], ...]]] = {
     "POSE_LANDMARKS": (POSE_POINTS, tuple(_pose_point_terms(p) for p in POSE_POINTS)),
-    "FACE_LANDMARKS": (tuple(FACE_SITES), tuple((_s(s),) for s in FACE_SITES.values())),
+    "FACE_LANDMARKS": (
+        (*FACE_SITES, *(i for i in FACE_RIG if i not in FACE_SITES)),
+        (
+            *(_face(i, s) for i, s in FACE_SITES.items()),
+            *(_face(i, FACE_RIG[i][0]) for i in FACE_RIG if i not in FACE_SITES),
+        ),
+    ),
     "LEFT_HAND_LANDMARKS": (HAND_POINTS, tuple(_hand_terms("L"))),
     "RIGHT_HAND_LANDMARKS": (HAND_POINTS, tuple(_hand_terms("R"))),
 }
@@ -332,7 +381,23 @@ def keypoints(
     return out
 
 
+def _carried(model: mujoco.MjModel, t: Term, smap: SignerMap) -> tuple[int, np.ndarray]:
+    """The body carrying ``t`` and the point's offset in that body's frame (from qpos0)."""
+    s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, smap.sites[t.site])
+    if s < 0:
+        raise AzeeError(f".pose export: the model has no site {smap.sites[t.site]!r}")
+    b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, t.carrier)
+    b = int(model.site_bodyid[s]) if b < 0 else b
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    p = data.site_xpos[s] + np.asarray(t.offset, float)
+    return b, data.xmat[b].reshape(3, 3).T @ (p - data.xpos[b])
+
+
 def _resolve(model, t: Term, smap: SignerMap):
+    if t.carrier is not None:
+        b, off = _carried(model, t, smap)
+        return (t.weight, -1, b, off)
     if t.site is not None:
         s = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, smap.sites[t.site])
         if s < 0:
@@ -346,7 +411,7 @@ def _resolve(model, t: Term, smap: SignerMap):
 
 
 def _face_limbs() -> list[tuple[int, int]]:
-    idx = {n: i for i, n in enumerate(FACE_SITES)}
+    idx = {n: i for i, n in enumerate(POINTS["FACE_LANDMARKS"][0])}
     return [(idx[a], idx[b]) for a, b in FACE_LIMBS_BY_NAME]
 
 

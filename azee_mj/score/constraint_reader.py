@@ -8,6 +8,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from azee_mj import arkit
 from azee_mj.score.grammar import ExpressionReader
 from azee_mj.score.records import (
     CONSTRAINT_TYPES,
@@ -129,6 +130,10 @@ class ConstraintReader:
                 field="id",
             )
         weight = number(loc, "weight", obj["weight"])
+        if arkit.is_shape(mid) and not 0.0 <= weight <= 1.0:
+            raise loc.fail(
+                f"weight {weight:g} is out of range", "ARKit shapes take 0 to 1", field="weight"
+            )
         side = None
         if "side" in obj:
             written = string(loc, "side", obj["side"])

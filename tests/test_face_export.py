@@ -17,7 +17,9 @@ from azee_mj.export import Motion, export
 from azee_mj.export import arkit as face
 from azee_mj.export import pose as pose_mod
 from azee_mj.face import morph_posture as face_posture
+from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
+from azee_mj.timeline import realize
 
 
 def posture(model, morphs: dict[tuple[str, str | None], float]) -> np.ndarray:
@@ -138,10 +140,16 @@ def test_cli_exports_live_link_face(tmp_path, capsys):
     src = Path(__file__).resolve().parent.parent / "examples" / "info-about.json"
     assert main(["export", str(src), "-o", str(out), "--fps", "25"]) == 0
     rows = list(csv.reader(out.open()))
-    assert len(rows) == 1 + 61 and {r[1] for r in rows[1:]} == {"61"}  # 2.4 s at 25 fps
+    rollout = realize(load_score(src), fps=25)
+    assert len(rows) == 1 + len(rollout.time)  # a row a frame, lead-in and return included
+    assert {r[1] for r in rows[1:]} == {"61"}  # 52 shapes and 9 rotations
     brows = [float(r[rows[0].index("BrowOuterUpLeft")]) for r in rows[1:]]
-    blink = [float(r[rows[0].index("EyeBlinkRight")]) for r in rows[1:]]
-    assert blink[-1] == pytest.approx(1.0, abs=1e-3)  # BLINK over [2.0, 2.2] (held after)
+    blink = np.array([float(r[rows[0].index("EyeBlinkRight")]) for r in rows[1:]])
+    # BLINK closes the eyes over [2.0, 2.2] s of the score, held after; the return to rest
+    # opens them again once the score ends
+    held = round((rollout.score_start + 2.2) * 25)
+    assert blink[held] == pytest.approx(1.0, abs=1e-3)
+    assert blink[-1] == pytest.approx(0.0, abs=1e-3)
     # brows_raise 0.8 over the topic: browInnerUp and browOuterUp at 0.8 x 0.8
     assert max(brows) == pytest.approx(0.64, abs=1e-3)
 

@@ -376,7 +376,7 @@ class KeyPoser:
         The groups met without it are then solved again on the moved trunk (it carries
         them) rather than riding along: a look turns the head only as far as it needs. If
         that fails, every active track is solved together with the trunk. Returns the
-        (groups, solved) kept: the first that meets everything, else the least violation."""
+        (groups, solved) kept (:meth:`keep_upright_on_miss`)."""
         solve = self.groups.solve
         # a group the score drives the trunk with joins the groups it helps
         failed = [g for g, s in zip(groups, solved) if not s.converged or "spine" in g]
@@ -397,16 +397,14 @@ class KeyPoser:
             group = set().union(*groups) | {"spine"}
             tries.append(([group], [solve(group, items, before, keys, t0, upright=True)]))
 
-        def total(cand) -> float:
-            return sum(violation(s.result) for s in cand[1])
+        return self.keep_upright_on_miss((groups, solved), tries)
 
-        best = (groups, solved)
-        for cand in tries:
-            if all(s.converged for s in cand[1]):
-                return cand
-            if total(cand) < total(best):
-                best = cand
-        return best
+    @staticmethod
+    def keep_upright_on_miss(upright, tries):
+        """The first of the trunk-recruited ``tries`` that meets everything; else the
+        solve the limbs made alone (``upright``): a miss costs no naturalness, the trunk
+        does not lean toward a constraint it cannot meet anyway."""
+        return next((c for c in tries if all(s.converged for s in c[1])), upright)
 
     def lean_less(self, solved: GroupSolve, group: set[str], items, keys, t0: float):
         """Bring the trunk of a converged ``solved`` back toward neutral as far as the rest

@@ -34,6 +34,9 @@ from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
 #: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
 LEAN_STEPS = 5
+#: Largest lean [rad] of any spine joint kept for a group the trunk helps but that still
+#: misses (two spine joints: the chest at most about 10 degrees from upright).
+MISS_LEAN = np.deg2rad(5.0)
 #: Tracks that return to neutral when no block needs them.
 RELAXING = ("spine", "head")
 
@@ -399,12 +402,24 @@ class KeyPoser:
 
         return self.keep_upright_on_miss((groups, solved), tries)
 
-    @staticmethod
-    def keep_upright_on_miss(upright, tries):
-        """The first of the trunk-recruited ``tries`` that meets everything; else the
-        solve the limbs made alone (``upright``): a miss costs no naturalness, the trunk
-        does not lean toward a constraint it cannot meet anyway."""
-        return next((c for c in tries if all(s.converged for s in c[1])), upright)
+    def keep_upright_on_miss(self, upright, tries):
+        """The first of the trunk-recruited ``tries`` that meets everything; else a miss
+        costs no naturalness: the least violating of the solve the limbs made alone
+        (``upright``) and the tries whose trunk leans at most ``MISS_LEAN`` at every
+        spine joint (the trunk does not bow toward a constraint it cannot meet)."""
+        met = next((c for c in tries if all(s.converged for s in c[1])), None)
+        if met is not None:
+            return met
+        d, home = self.schedule.track_dofs.get("spine"), self.schedule.home
+
+        def upright_enough(cand) -> bool:
+            return all(np.abs(s.qpos[d] - home[d]).max() <= MISS_LEAN for s in cand[1])
+
+        def total(cand) -> float:
+            return sum(violation(s.result) for s in cand[1])
+
+        near = [c for c in tries if d is not None and upright_enough(c)]
+        return min([upright, *near], key=total)
 
     def lean_less(self, solved: GroupSolve, group: set[str], items, keys, t0: float):
         """Bring the trunk of a converged ``solved`` back toward neutral as far as the rest

@@ -315,7 +315,10 @@ class KeyPoser:
         for g in groups:
             solved.append(self.groups.solve(g, items, state, keys, t0))
             self.take(state, g, solved[-1].qpos)
-        if self.mode is Mode.MULTITRACK and any(not s.converged for s in solved):
+        if self.mode is Mode.MULTITRACK and any(
+            not s.converged and not all(t.startswith("hand") for t in g)
+            for g, s in zip(groups, solved)
+        ):  # a hand's fingers missing one another: leaning cannot help them
             groups, solved = self.recruit_trunk(groups, solved, items, before, keys, t0)
         for group, s in zip(groups, solved):
             if not s.converged:

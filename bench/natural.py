@@ -259,6 +259,17 @@ CONTACTS = (
     ("fingertips-back-of-head", "face", FLAT, None, "@M_TIP(s)", "@BEB"),
     ("fingertips-lips", "face", FLAT, None, "@M_TIP(s)", "@MO"),
     ("index-tip-nose-side", "face", INDEX, None, "@I_TIP(s)", "@NO(s)"),
+    ("fingertips-nape", "body", FLAT, None, "@M_TIP(s)", "@NAPE"),
+    ("palm-hip", "body", FLAT, None, "@PA(s)", "@HIP(s)"),
+    (
+        "two-palms-hips",
+        "two-hands",
+        FLAT,
+        FLAT,
+        "@PA(s)",
+        "@HIP(s)",
+        (place("@PA(w)", "@HIP(w)"),),
+    ),
     (
         "penser",
         "face",

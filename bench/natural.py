@@ -2,9 +2,12 @@
 
     python bench/natural.py [--quick] [--label NAME] [--no-mink] [--sheet docs/contacts.png]
 
-Every contact of :data:`CONTACTS` (and of :data:`BEYOND`, reported apart) is its own small score: the hand shapes signers use for it
-(a ``cstr`` over the whole score) and one ``place`` of a site at another site (default 1 mm
-tolerance) held from 0.4 s to 0.8 s. Each is realized with ``azee_mj.timeline.realize`` at
+Every contact of :data:`CONTACTS` (and of :data:`BEYOND` and :data:`HELD_OUT`, reported
+apart) is its own small score: the hand shapes signers use for it (a ``cstr`` over the
+whole score; none when the fingers are the solver's) and one ``place`` of a site at another
+site (default 1 mm tolerance) held from 0.4 s to 0.8 s, with the constraints the contact
+adds (either hand's orientation, a second placement). The contact is met when every
+placement is within 1 mm and every orientation within its tolerance. Each is realized with ``azee_mj.timeline.realize`` at
 50 fps with ``strong_side`` R and L, and measured on the held frame (0.6 s):
 
 - the contact's worst residual over the held block (``Rollout.traces``);

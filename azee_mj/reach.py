@@ -312,13 +312,12 @@ def _turned(solver: ik.Solver, arms, cons, free, q: np.ndarray) -> np.ndarray | 
         j = solver.joint_id(arm.pron)
         adr = m.jnt_qposadr[j]
 
-        def cost(v: float) -> float:
+        costs = []
+        for v in np.linspace(*m.jnt_range[j], TURN_SAMPLES):
             out[adr] = v
             k = solver.at(out)
-            return sum(float(np.sum(c.rows(k)[0] ** 2)) for c in mine)
-
-        values = np.linspace(*m.jnt_range[j], TURN_SAMPLES)
-        out[adr] = min(values, key=cost)
+            costs.append((sum(float(np.sum(c.rows(k)[0] ** 2)) for c in mine), v))
+        out[adr] = min(costs)[1]
         turned = True
     return out if turned else None
 

@@ -300,14 +300,16 @@ TURN_SAMPLES = 9
 def _turned(solver: ik.Solver, arms, cons, free, q: np.ndarray) -> np.ndarray | None:
     """Seed ``q`` with each arm whose palm the score orients (an ``Orient`` of its hand
     body among ``cons``: the weak palm turned up under the other hand) turned at the
-    forearm to the rotation that best meets those orientations, or None when no arm is
-    turned. Both hands are turned in the one start: a contact whose two sides are
-    oriented starts with both."""
+    forearm to the rotation that best meets its orientations (the score's and face to
+    face), or None when no arm is turned. Both hands are turned in the one start: a
+    contact whose two sides are oriented starts with both."""
     m = solver.model
     out, turned = q.copy(), False
     for arm in arms:
         mine = [c for c in cons if isinstance(c, cn.Orient) and c.body == arm.hand]
-        if not mine or not arm.pron or arm.pron not in free:
+        if not any(not c.label.endswith(":facing") for c in mine):
+            continue  # the score orients neither hand: face to face alone seeds as before
+        if not arm.pron or arm.pron not in free:
             continue
         j = solver.joint_id(arm.pron)
         adr = m.jnt_qposadr[j]

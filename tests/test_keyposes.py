@@ -111,3 +111,37 @@ def test_a_miss_does_not_bow_the_trunk(solver):
     for k in keys["spine"]:
         assert np.abs(k.q[d] - home[d]).max() <= np.deg2rad(5.0) + 1e-9
     assert poser.reasons  # the report still says why it missed
+
+
+def test_joined_hands_with_an_oriented_palm_start_turned_as_asked(solver):
+    # the strong hand's edge on the weak palm, the weak palm up: both sides constrained,
+    # the hands flat from the start, the contact from 0.4 s (as bench/natural.py writes it)
+    flat = {"type": "morph", "id": "flat", "weight": 1.0}
+    touch = [
+        {"type": "place", "site": "@H_EDGE(s)", "at": "@PA(w)"},
+        {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "up"},
+    ]
+    score = load_score(
+        {
+            "format": "azee-score",
+            "version": 1,
+            "root": {
+                "name": "C",
+                "kind": "sync",
+                "start": 0.0,
+                "end": 0.8,
+                "children": [
+                    {"name": "S", "kind": "cstr", "start": 0.0, "end": 0.8, "constraints": [flat]},
+                    {"name": "T", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": touch},
+                ],
+            },
+        }
+    )
+    poser = KeyPoser(IKAdapter(Schedule(score, solver)), Mode.MULTITRACK)
+    keys = poser.key_postures()
+    assert poser.reasons == {}
+    k = solver.at(keys["arm_L"][-1].q)
+    edge = k.d.site_xpos[solver.site_id("H_EDGE_R")]
+    assert np.linalg.norm(edge - k.d.site_xpos[solver.site_id("PA_L")]) <= 1e-3
+    normal = k.d.xmat[solver.body_id("palm_L")].reshape(3, 3) @ np.array([0.0, -1.0, 0.0])
+    assert np.degrees(np.arccos(np.clip(normal[2], -1, 1))) <= 1.0 + 1e-6

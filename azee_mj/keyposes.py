@@ -242,6 +242,9 @@ class KeyPoser:
         self.adapter, self.schedule, self.mode = adapter, adapter.schedule, mode
         self.groups = GroupPoser(adapter)
         self.reasons: dict[str, str] = {}
+        #: id of a missing solve kept upright -> the joints to say why it missed with (the
+        #: trunk's too: it was tried, so what conflicts is told as it is with the trunk)
+        self.diagnose_free: dict[int, tuple[str, ...]] = {}
 
     def take(self, state: np.ndarray, tracks, q: np.ndarray) -> None:
         """Copy the joints of ``tracks`` from posture ``q`` into ``state`` (in place)."""
@@ -322,7 +325,8 @@ class KeyPoser:
             groups, solved = self.recruit_trunk(groups, solved, items, before, keys, t0)
         for group, s in zip(groups, solved):
             if not s.converged:
-                self.diagnose(s, before, t0)
+                free = self.diagnose_free.pop(id(s), s.free)
+                self.diagnose(dataclasses.replace(s, free=free), before, t0)
             for t in group:
                 self.take(state, (t,), s.qpos)
                 if keys[t] and keys[t][-1].start == t0:
@@ -422,7 +426,12 @@ class KeyPoser:
             return sum(violation(s.result) for s in cand[1])
 
         near = [c for c in tries if d is not None and upright_enough(c)]
-        return min([upright, *near], key=total)
+        kept = min([upright, *near], key=total)
+        spine = self.schedule.track_joints.get("spine", ())
+        for s in kept[1]:
+            if not s.converged:
+                self.diagnose_free[id(s)] = s.free + tuple(j for j in spine if j not in s.free)
+        return kept
 
     def lean_less(self, solved: GroupSolve, group: set[str], items, keys, t0: float):
         """Bring the trunk of a converged ``solved`` back toward neutral as far as the rest

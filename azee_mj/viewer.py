@@ -59,6 +59,64 @@ class Player:
             self.camera_steps += 1
 
 
+def _require_display() -> None:
+    """Fail with a clear message when no display is available on Linux."""
+    if (
+        sys.platform.startswith("linux")
+        and not os.environ.get("DISPLAY")
+        and not os.environ.get("WAYLAND_DISPLAY")
+    ):
+        raise AzeeError(
+            "preview needs a display (DISPLAY is unset); run it under "
+            "'xvfb-run', or use 'azee-mj render' for a video"
+        )
+
+
+def _advance(clip: Clip, player: Player, clock: float, last: float, now: float) -> float:
+    """The looping playback clock (seconds) after one viewer update at time ``now``."""
+    if not player.paused:
+        clock += (now - last) * player.speed
+    if player.step:
+        clock += player.step / clip.fps
+        player.step = 0
+    period = clip.duration + 1.0 / clip.fps
+    return clock % period
+
+
+def _apply_camera(handle, cams: list[int], cam_i: int) -> None:
+    """Point the viewer at ``cams[cam_i]`` (-1: the free camera)."""
+    import mujoco
+
+    if cams[cam_i] < 0:
+        handle.cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    else:
+        handle.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        handle.cam.fixedcamid = cams[cam_i]
+
+
+def _set_texts(handle, clip: Clip, frame: int, player: Player, camera_name: str) -> None:
+    """Write the frame overlay and the key help into the viewer."""
+    import mujoco
+
+    left, right = frame_text(clip, frame, player.speed, player.paused)
+    handle.set_texts(
+        [
+            (
+                mujoco.mjtFontScale.mjFONTSCALE_150,
+                mujoco.mjtGridPos.mjGRID_TOPLEFT,
+                left + "\ncamera",
+                right + "\n" + camera_name,
+            ),
+            (
+                mujoco.mjtFontScale.mjFONTSCALE_150,
+                mujoco.mjtGridPos.mjGRID_BOTTOMLEFT,
+                "keys",
+                "space pause, <- -> step, up/down speed, C camera",
+            ),
+        ]
+    )
+
+
 def preview(
     clip: Clip,
     *,
@@ -70,15 +128,7 @@ def preview(
     (or after ``max_frames`` viewer updates). Returns the number of updates."""
     import mujoco.viewer
 
-    if (
-        sys.platform.startswith("linux")
-        and not os.environ.get("DISPLAY")
-        and not os.environ.get("WAYLAND_DISPLAY")
-    ):
-        raise AzeeError(
-            "preview needs a display (DISPLAY is unset); run it under "
-            "'xvfb-run', or use 'azee-mj render' for a video"
-        )
+    _require_display()
     model = scene_model()
     data = mujoco.MjData(model)
     tg = Targets(clip.score) if targets and clip.score is not None else None
@@ -96,14 +146,8 @@ def preview(
     try:
         while handle.is_running() and (max_frames is None or n < max_frames):
             now = _time.perf_counter()
-            if not player.paused:
-                clock += (now - last) * player.speed
+            clock = _advance(clip, player, clock, last, now)
             last = now
-            if player.step:
-                clock += player.step / clip.fps
-                player.step = 0
-            period = clip.duration + 1.0 / clip.fps
-            clock %= period
             frame = min(int(clock * clip.fps + 1e-9), len(clip.time) - 1)
             if player.camera_steps != applied_steps:
                 cam_i = (cam_i + player.camera_steps - applied_steps) % len(cams)
@@ -116,32 +160,12 @@ def preview(
                     scn.ngeom = 0
                     add_markers(scn, items)
                 if cam_i != applied_cam:
-                    if cams[cam_i] < 0:
-                        handle.cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-                    else:
-                        handle.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
-                        handle.cam.fixedcamid = cams[cam_i]
+                    _apply_camera(handle, cams, cam_i)
                     applied_cam = cam_i
                 # C is also MuJoCo's contact-point shortcut; keep that display off.
                 handle.opt.flags[mujoco.mjtVisFlag.mjVIS_CONTACTPOINT] = 0
-            left, right = frame_text(clip, frame, player.speed, player.paused)
             name = CAMERAS[cam_i - 1] if cams[cam_i] >= 0 else "free"
-            handle.set_texts(
-                [
-                    (
-                        mujoco.mjtFontScale.mjFONTSCALE_150,
-                        mujoco.mjtGridPos.mjGRID_TOPLEFT,
-                        left + "\ncamera",
-                        right + "\n" + name,
-                    ),
-                    (
-                        mujoco.mjtFontScale.mjFONTSCALE_150,
-                        mujoco.mjtGridPos.mjGRID_BOTTOMLEFT,
-                        "keys",
-                        "space pause, <- -> step, up/down speed, C camera",
-                    ),
-                ]
-            )
+            _set_texts(handle, clip, frame, player, name)
             handle.sync()
             n += 1
             _time.sleep(max(0.0, 1.0 / 60 - (_time.perf_counter() - now)))

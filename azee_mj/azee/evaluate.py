@@ -183,6 +183,29 @@ class _Evaluator:
         loci and digits :class:`Lit`, scores :class:`ScoreVal`."""
         sig = ", ".join(p.signature() for p in params) or "no arguments"
         takes = f"it takes {sig}" if params else "it takes no arguments"
+        assigned = self._assign(node, params, callee, here, sig, takes)
+        out: dict[str, Any] = {}
+        parts: list[str] = []
+        for p in params:
+            given = assigned.get(p.name)
+            if not given:
+                if p.default is None:
+                    raise self.err(
+                        f"missing argument '{p.name} for {callee}; {takes}",
+                        node.line,
+                        node.col,
+                        here,
+                    )
+                out[p.name] = _default(p, keep_lits)
+                continue
+            out[p.name] = self._bind_param(p, given, here, takes, keep_lits, parts)
+        head = f"{callee}({', '.join(parts)})" if parts else callee
+        return out, head, set(assigned)
+
+    def _assign(
+        self, node: App, params: tuple[Param, ...], callee: str, here: str, sig: str, takes: str
+    ) -> dict[str, list[Arg]]:
+        """Match ``node``'s arguments, positional then labelled, to parameter names."""
         by_name = {p.name: p for p in params}
         assigned: dict[str, list[Arg]] = {}
         seen_label = False
@@ -220,48 +243,39 @@ class _Evaluator:
                     f"repeated argument '{p.name} for {callee}; {takes}", a.line, a.col, here
                 )
             assigned.setdefault(p.name, []).append(a)
-        out: dict[str, Any] = {}
-        parts: list[str] = []
-        for p in params:
-            given = assigned.get(p.name)
-            if not given:
-                if p.default is None:
-                    raise self.err(
-                        f"missing argument '{p.name} for {callee}; {takes}",
-                        node.line,
-                        node.col,
-                        here,
-                    )
-                out[p.name] = _default(p, keep_lits)
-                continue
-            if p.list and len(given) < p.min_items:
-                a = given[-1]
+        return assigned
+
+    def _bind_param(
+        self, p: Param, given: list[Arg], here: str, takes: str, keep_lits: bool, parts: list[str]
+    ) -> Any:
+        """Check and evaluate the arguments given to ``p``; appends their canonical text
+        to ``parts``."""
+        if p.list and len(given) < p.min_items:
+            a = given[-1]
+            raise self.err(
+                f"'{p.name}: expected at least {p.min_items} items, got {len(given)}; {takes}",
+                a.line,
+                a.col,
+                here,
+            )
+        vals = []
+        for a in given:
+            kind = _kind_of(a.value)
+            if kind != p.kind:
                 raise self.err(
-                    f"'{p.name}: expected at least {p.min_items} items, got {len(given)}; {takes}",
-                    a.line,
-                    a.col,
+                    f"'{p.name}: expected {KINDS[p.kind]}, got {_describe(a.value)}",
+                    a.value.line,
+                    a.value.col,
                     here,
                 )
-            vals = []
-            for a in given:
-                kind = _kind_of(a.value)
-                if kind != p.kind:
-                    raise self.err(
-                        f"'{p.name}: expected {KINDS[p.kind]}, got {_describe(a.value)}",
-                        a.value.line,
-                        a.value.col,
-                        here,
-                    )
-                v = self.value(a.value, f"{here}'{p.name}")
-                if p.kind == "num":
-                    self.check_num(p, v, a.value, here)
-                vals.append(v)
-                parts.append(f"'{p.name} {v.head if isinstance(v, ScoreVal) else v.text}")
-            if p.kind == "num" and not keep_lits:
-                vals = [v.value for v in vals]
-            out[p.name] = vals if p.list else vals[0]
-        head = f"{callee}({', '.join(parts)})" if parts else callee
-        return out, head, set(assigned)
+            v = self.value(a.value, f"{here}'{p.name}")
+            if p.kind == "num":
+                self.check_num(p, v, a.value, here)
+            vals.append(v)
+            parts.append(f"'{p.name} {v.head if isinstance(v, ScoreVal) else v.text}")
+        if p.kind == "num" and not keep_lits:
+            vals = [v.value for v in vals]
+        return vals if p.list else vals[0]
 
     def check_num(self, p: Param, v: Lit, node: Node, here: str) -> None:
         if p.minimum is None:

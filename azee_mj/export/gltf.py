@@ -47,6 +47,146 @@ def _yup_quat_xyzw() -> list[float]:
     return [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
 
 
+class _Builder:
+    """A ``GLTF2`` under construction with its binary blob and its material table."""
+
+    def __init__(self, gl, model: mujoco.MjModel):
+        self.gl, self.model = gl, model
+        self.blob = bytearray()
+        self.g = gl.GLTF2(asset=gl.Asset(generator="azee_mj", version="2.0"))
+        # one material per MuJoCo material, or per distinct rgba of an unmaterialed geom
+        self.mat_index: dict[object, int] = {}
+
+    def add_view(self, arr: np.ndarray, target=None) -> int:
+        blob, g = self.blob, self.g
+        while len(blob) % 4:
+            blob.append(0)
+        data = np.ascontiguousarray(arr).tobytes()
+        g.bufferViews.append(
+            self.gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target)
+        )
+        blob.extend(data)
+        return len(g.bufferViews) - 1
+
+    def add_accessor(self, arr: np.ndarray, type_: str, target=None, minmax=False) -> int:
+        gl = self.gl
+        ctype = gl.FLOAT if arr.dtype == np.float32 else gl.UNSIGNED_INT
+        acc = gl.Accessor(
+            bufferView=self.add_view(arr, target), componentType=ctype, count=len(arr), type=type_
+        )
+        if minmax:
+            a = arr.reshape(len(arr), -1)
+            acc.min, acc.max = a.min(0).tolist(), a.max(0).tolist()
+        self.g.accessors.append(acc)
+        return len(self.g.accessors) - 1
+
+    def material(self, geom: int) -> int:
+        gl, model, g = self.gl, self.model, self.g
+        mid = model.geom_matid[geom]
+        if mid >= 0:
+            key = ("mat", int(mid))
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MATERIAL, mid)
+            rgba, shin = model.mat_rgba[mid], float(model.mat_shininess[mid])
+        else:
+            rgba, shin = model.geom_rgba[geom], 0.5
+            key = ("rgba", tuple(np.round(rgba, 4)))
+            name = "rgba_" + "_".join(f"{x:.2f}" for x in rgba)
+        if key not in self.mat_index:
+            g.materials.append(
+                gl.Material(
+                    name=name,
+                    pbrMetallicRoughness=gl.PbrMetallicRoughness(
+                        baseColorFactor=srgb_to_linear(rgba),
+                        metallicFactor=0.0,
+                        roughnessFactor=float(np.clip(1.0 - 0.6 * shin, 0.2, 1.0)),
+                    ),
+                    alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE",
+                    doubleSided=False,
+                )
+            )
+            self.mat_index[key] = len(g.materials) - 1
+        return self.mat_index[key]
+
+
+def _add_meshes(bld: _Builder, names, groups, segments: int) -> dict[int, int]:
+    """One mesh per body with visual geoms; returns body id -> mesh index."""
+    gl, model, g = bld.gl, bld.model, bld.g
+    body_mesh: dict[int, int] = {}
+    for b in range(model.nbody):
+        prims = []
+        for geom in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b]):
+            if model.geom_group[geom] not in groups:
+                continue
+            m = geom_mesh(model, geom, segments)
+            if m is None:
+                continue
+            p, n, tri = m
+            prims.append(
+                gl.Primitive(
+                    attributes=gl.Attributes(
+                        POSITION=bld.add_accessor(
+                            p.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER, True
+                        ),
+                        NORMAL=bld.add_accessor(n.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER),
+                    ),
+                    indices=bld.add_accessor(
+                        tri.astype(np.uint32).reshape(-1), gl.SCALAR, gl.ELEMENT_ARRAY_BUFFER
+                    ),
+                    material=bld.material(geom),
+                )
+            )
+        if prims:
+            g.meshes.append(gl.Mesh(name=names[b], primitives=prims))
+            body_mesh[b] = len(g.meshes) - 1
+    return body_mesh
+
+
+def _add_nodes(bld: _Builder, names, body_mesh, lpos, lquat) -> None:
+    """The node tree (node index == body id) at the first frame, and the scene."""
+    gl, model, g = bld.gl, bld.model, bld.g
+    for b in range(model.nbody):
+        node = gl.Node(name=names[b], mesh=body_mesh.get(b))
+        if b == 0:
+            node.rotation = _yup_quat_xyzw()
+        else:
+            t, q = lpos[0, b], lquat[0, b]
+            node.translation = [float(x) for x in t]
+            node.rotation = [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
+        g.nodes.append(node)
+    for b in range(1, model.nbody):
+        g.nodes[model.body_parentid[b]].children.append(b)
+    g.scenes = [gl.Scene(name="signer", nodes=[0])]
+    g.scene = 0
+
+
+def _add_animation(bld: _Builder, T: int, fps: float, rot, slide, lpos, lquat) -> None:
+    """One linear sampler per moving body's rotation and translation."""
+    gl, model, g = bld.gl, bld.model, bld.g
+    times = (np.arange(T) / fps).astype(np.float32)
+    t_acc = None
+    samplers, channels = [], []
+    for b in range(1, model.nbody):
+        for path, flag, values in (
+            ("rotation", rot[b], lquat[:, b][:, [1, 2, 3, 0]]),
+            ("translation", slide[b], lpos[:, b]),
+        ):
+            if not flag:
+                continue
+            if t_acc is None:
+                t_acc = bld.add_accessor(times, gl.SCALAR, minmax=True)
+            out = bld.add_accessor(
+                values.astype(np.float32), gl.VEC4 if path == "rotation" else gl.VEC3
+            )
+            samplers.append(gl.AnimationSampler(input=t_acc, output=out, interpolation="LINEAR"))
+            channels.append(
+                gl.AnimationChannel(
+                    sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=b, path=path)
+                )
+            )
+    if channels:
+        g.animations = [gl.Animation(name="motion", samplers=samplers, channels=channels)]
+
+
 def build_gltf(
     model: mujoco.MjModel,
     qpos: np.ndarray,
@@ -71,128 +211,13 @@ def build_gltf(
     pos, quat = mo.body_frames(model, np.asarray(qpos, float))
     lpos, lquat = mo.local_frames(model, pos, quat)
 
-    blob = bytearray()
-    g = gl.GLTF2(asset=gl.Asset(generator="azee_mj", version="2.0"))
-
-    def add_view(arr: np.ndarray, target=None) -> int:
-        while len(blob) % 4:
-            blob.append(0)
-        data = np.ascontiguousarray(arr).tobytes()
-        g.bufferViews.append(
-            gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target)
-        )
-        blob.extend(data)
-        return len(g.bufferViews) - 1
-
-    def add_accessor(arr: np.ndarray, type_: str, target=None, minmax=False) -> int:
-        ctype = gl.FLOAT if arr.dtype == np.float32 else gl.UNSIGNED_INT
-        acc = gl.Accessor(
-            bufferView=add_view(arr, target), componentType=ctype, count=len(arr), type=type_
-        )
-        if minmax:
-            a = arr.reshape(len(arr), -1)
-            acc.min, acc.max = a.min(0).tolist(), a.max(0).tolist()
-        g.accessors.append(acc)
-        return len(g.accessors) - 1
-
-    # materials: one per MuJoCo material, or per distinct rgba of an unmaterialed geom
-    mat_index: dict[object, int] = {}
-
-    def material(geom: int) -> int:
-        mid = model.geom_matid[geom]
-        if mid >= 0:
-            key = ("mat", int(mid))
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MATERIAL, mid)
-            rgba, shin = model.mat_rgba[mid], float(model.mat_shininess[mid])
-        else:
-            rgba, shin = model.geom_rgba[geom], 0.5
-            key = ("rgba", tuple(np.round(rgba, 4)))
-            name = "rgba_" + "_".join(f"{x:.2f}" for x in rgba)
-        if key not in mat_index:
-            g.materials.append(
-                gl.Material(
-                    name=name,
-                    pbrMetallicRoughness=gl.PbrMetallicRoughness(
-                        baseColorFactor=srgb_to_linear(rgba),
-                        metallicFactor=0.0,
-                        roughnessFactor=float(np.clip(1.0 - 0.6 * shin, 0.2, 1.0)),
-                    ),
-                    alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE",
-                    doubleSided=False,
-                )
-            )
-            mat_index[key] = len(g.materials) - 1
-        return mat_index[key]
-
-    # meshes, one per body with visual geoms
-    body_mesh: dict[int, int] = {}
-    for b in range(model.nbody):
-        prims = []
-        for geom in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b]):
-            if model.geom_group[geom] not in groups:
-                continue
-            m = geom_mesh(model, geom, segments)
-            if m is None:
-                continue
-            p, n, tri = m
-            prims.append(
-                gl.Primitive(
-                    attributes=gl.Attributes(
-                        POSITION=add_accessor(p.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER, True),
-                        NORMAL=add_accessor(n.astype(np.float32), gl.VEC3, gl.ARRAY_BUFFER),
-                    ),
-                    indices=add_accessor(
-                        tri.astype(np.uint32).reshape(-1), gl.SCALAR, gl.ELEMENT_ARRAY_BUFFER
-                    ),
-                    material=material(geom),
-                )
-            )
-        if prims:
-            g.meshes.append(gl.Mesh(name=names[b], primitives=prims))
-            body_mesh[b] = len(g.meshes) - 1
-
-    # nodes: node index == body id
-    for b in range(model.nbody):
-        node = gl.Node(name=names[b], mesh=body_mesh.get(b))
-        if b == 0:
-            node.rotation = _yup_quat_xyzw()
-        else:
-            t, q = lpos[0, b], lquat[0, b]
-            node.translation = [float(x) for x in t]
-            node.rotation = [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
-        g.nodes.append(node)
-    for b in range(1, model.nbody):
-        g.nodes[model.body_parentid[b]].children.append(b)
-    g.scenes = [gl.Scene(name="signer", nodes=[0])]
-    g.scene = 0
-
-    # the animation
-    T = len(qpos)
-    times = (np.arange(T) / fps).astype(np.float32)
-    t_acc = None
-    samplers, channels = [], []
-    for b in range(1, model.nbody):
-        for path, flag, values in (
-            ("rotation", rot[b], lquat[:, b][:, [1, 2, 3, 0]]),
-            ("translation", slide[b], lpos[:, b]),
-        ):
-            if not flag:
-                continue
-            if t_acc is None:
-                t_acc = add_accessor(times, gl.SCALAR, minmax=True)
-            out = add_accessor(
-                values.astype(np.float32), gl.VEC4 if path == "rotation" else gl.VEC3
-            )
-            samplers.append(gl.AnimationSampler(input=t_acc, output=out, interpolation="LINEAR"))
-            channels.append(
-                gl.AnimationChannel(
-                    sampler=len(samplers) - 1, target=gl.AnimationChannelTarget(node=b, path=path)
-                )
-            )
-    if channels:
-        g.animations = [gl.Animation(name="motion", samplers=samplers, channels=channels)]
-    g.buffers = [gl.Buffer(byteLength=len(blob))]
-    g.set_binary_blob(bytes(blob))
+    bld = _Builder(gl, model)
+    body_mesh = _add_meshes(bld, names, groups, segments)
+    _add_nodes(bld, names, body_mesh, lpos, lquat)
+    _add_animation(bld, len(qpos), fps, rot, slide, lpos, lquat)
+    g = bld.g
+    g.buffers = [gl.Buffer(byteLength=len(bld.blob))]
+    g.set_binary_blob(bytes(bld.blob))
     return g
 
 

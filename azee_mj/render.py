@@ -392,76 +392,80 @@ def render(
     imageio: Any = _need("imageio.v2") if suffix == ".mp4" else None
     pil: Any = _need("PIL.Image") if suffix in (".gif", ".png") else None
     if suffix == ".png":
-        with FrameRenderer(
-            clip, camera=camera, size=size, targets=targets, antialias=antialias
-        ) as fr:
-            if time is not None:
-                f = clip.frame_at(time)
-                img = pil.fromarray(fr.render(clip.qpos[f], f))
-            else:
-                img = _contact_sheet(fr, clip, size, tick)
-        with atomic_path(out) as tmp:
-            img.save(tmp, format="PNG", optimize=True)
-        tick(1.0)
-        return out
+        return _render_png(clip, out, camera, size, time, targets, antialias, tick, pil)
     vfps = float(fps or clip.fps)
     times, qs = resample(clip, vfps)
     deco = Decorations(clip, targets)
     items = [deco(clip.frame_at(t)) for t in times] if targets else None
-    n = len(qs)
-    jobs = video_workers(n, workers)
-    rw, rh = render_size(size, antialias)
+    jobs = video_workers(len(qs), workers)
+    opts = {"camera": camera, "size": size, "antialias": antialias, "workers": jobs}
     with atomic_path(out) as tmp:
         if suffix == ".mp4":
-            # x264's veryfast preset: half the encoding CPU of its default, same quality.
-            params = ["-preset", "veryfast"]
-            if (rw, rh) != tuple(size):  # supersampled: ffmpeg scales down, in its process
-                params += ["-vf", f"scale={size[0]}:{size[1]}:flags=bicubic"]
-            w = imageio.get_writer(
-                tmp,
-                format="FFMPEG",
-                fps=vfps,
-                codec="libx264",
-                quality=7,
-                macro_block_size=2,
-                ffmpeg_log_level="error",
-                output_params=params,
-            )
-            with Encoder(w.append_data, (rh, rw, 3), close=w.close) as enc:
-                for k, img in enumerate(
-                    render_frames(
-                        qs,
-                        items,
-                        camera=camera,
-                        size=size,
-                        antialias=antialias,
-                        workers=jobs,
-                        buffer=enc.buffer,
-                    )
-                ):
-                    enc.put(img)
-                    tick((k + 1) / n)
+            _write_mp4(tmp, imageio, qs, items, vfps, opts, tick)
         else:
-            frames = []
-            quantize = pil.Quantize.MEDIANCUT
-            for k, img in enumerate(
-                render_frames(
-                    qs, items, camera=camera, size=size, antialias=antialias, workers=jobs
-                )
-            ):
-                im = pil.fromarray(downscale(img, size))
-                frames.append(im.quantize(colors=128, method=quantize))
-                tick((k + 1) / n)
-            frames[0].save(
-                tmp,
-                format="GIF",
-                save_all=True,
-                append_images=frames[1:],
-                duration=round(1000.0 / vfps),
-                loop=0,
-                optimize=True,
-            )
+            _write_gif(tmp, pil, qs, items, vfps, opts, tick)
     return out
+
+
+def _render_png(clip, out, camera, size, time, targets, antialias, tick, pil) -> Path:
+    """The frame at ``time`` [s], or a labelled contact sheet, written as a PNG."""
+    from azee_mj.files import atomic_path
+
+    with FrameRenderer(clip, camera=camera, size=size, targets=targets, antialias=antialias) as fr:
+        if time is not None:
+            f = clip.frame_at(time)
+            img = pil.fromarray(fr.render(clip.qpos[f], f))
+        else:
+            img = _contact_sheet(fr, clip, size, tick)
+    with atomic_path(out) as tmp:
+        img.save(tmp, format="PNG", optimize=True)
+    tick(1.0)
+    return out
+
+
+def _write_mp4(tmp, imageio, qs, items, vfps: float, opts: dict, tick) -> None:
+    """Encode the frames of ``qs`` to an H.264 .mp4 at ``vfps`` frames per second."""
+    size = opts["size"]
+    n = len(qs)
+    rw, rh = render_size(size, opts["antialias"])
+    # x264's veryfast preset: half the encoding CPU of its default, same quality.
+    params = ["-preset", "veryfast"]
+    if (rw, rh) != tuple(size):  # supersampled: ffmpeg scales down, in its process
+        params += ["-vf", f"scale={size[0]}:{size[1]}:flags=bicubic"]
+    w = imageio.get_writer(
+        tmp,
+        format="FFMPEG",
+        fps=vfps,
+        codec="libx264",
+        quality=7,
+        macro_block_size=2,
+        ffmpeg_log_level="error",
+        output_params=params,
+    )
+    with Encoder(w.append_data, (rh, rw, 3), close=w.close) as enc:
+        for k, img in enumerate(render_frames(qs, items, **opts, buffer=enc.buffer)):
+            enc.put(img)
+            tick((k + 1) / n)
+
+
+def _write_gif(tmp, pil, qs, items, vfps: float, opts: dict, tick) -> None:
+    """Write the frames of ``qs``, downscaled and quantized, as a looping GIF."""
+    n = len(qs)
+    frames = []
+    quantize = pil.Quantize.MEDIANCUT
+    for k, img in enumerate(render_frames(qs, items, **opts)):
+        im = pil.fromarray(downscale(img, opts["size"]))
+        frames.append(im.quantize(colors=128, method=quantize))
+        tick((k + 1) / n)
+    frames[0].save(
+        tmp,
+        format="GIF",
+        save_all=True,
+        append_images=frames[1:],
+        duration=round(1000.0 / vfps),
+        loop=0,
+        optimize=True,
+    )
 
 
 # ---------------------------------------------------------------------------------------

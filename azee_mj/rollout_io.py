@@ -41,26 +41,6 @@ REQUIRED = ("time", "qpos", "fps", "site_names", "site_pos")
 #: [bytes]: the longest rollout (MAX_FRAMES frames of the bundled signer) needs about 1 GB.
 MAX_BYTES = 3 * 2**29
 
-#: Every array a rollout file may hold (any other member of the file is never read).
-ARRAYS = (
-    *REQUIRED,
-    "mode",
-    "residual_names",
-    "residual_kinds",
-    "residual_units",
-    "residual_reasons",
-    "residual_tol",
-    "residual_span",
-    "residual_first",
-    "residual_count",
-    "residual_values",
-    "residuals",
-    "schedule_track",
-    "schedule_block",
-    "schedule_span",
-    "stats",
-    "stats_iterations",
-)
 
 _STATS = ("problems", "key_problems", "iterations", "not_converged", "solve_time", "total_time")
 
@@ -100,6 +80,34 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
 
 #: The per-frame (T,) arrays of a physics rollout.
 DYNAMIC_SERIES = ("effort", "energy", "tracking_site", "tracking_joint", "tie_force")
+
+#: Every array a rollout file may hold (any other member of the file is never read).
+ARRAYS = (
+    *REQUIRED,
+    "mode",
+    "residual_names",
+    "residual_kinds",
+    "residual_units",
+    "residual_reasons",
+    "residual_tol",
+    "residual_span",
+    "residual_first",
+    "residual_count",
+    "residual_values",
+    "residuals",
+    "schedule_track",
+    "schedule_block",
+    "schedule_span",
+    "stats",
+    "stats_iterations",
+    # a physics rollout's
+    "torque_joints",
+    "torque",
+    "torque_peak",
+    "torque_limit",
+    "timestep",
+    *DYNAMIC_SERIES,
+)
 
 
 def dynamic_arrays(r: DynamicRollout) -> dict[str, np.ndarray]:

@@ -551,3 +551,22 @@ def test_the_csv_legend_names_every_column_stem():
         if not found:
             missing.add(stem)
     assert missing == set()
+
+
+def test_every_array_a_rollout_file_holds_is_read(tmp_path):
+    from azee_mj import physics
+    from azee_mj.rollout_io import (
+        ARRAYS,
+        dynamic_arrays,
+        load_rollout,
+        rollout_arrays,
+        save_rollout,
+    )
+    from azee_mj.timeline import realize
+
+    r = physics.realize(GOOD, fps=10)
+    assert set(rollout_arrays(r)) | set(dynamic_arrays(r)) <= set(ARRAYS)
+    save_rollout(tmp_path / "d.npz", r)
+    back = load_rollout(tmp_path / "d.npz", r.qpos.shape[1])
+    assert isinstance(back, physics.DynamicRollout)
+    assert set(rollout_arrays(realize(GOOD, fps=10))) <= set(ARRAYS)

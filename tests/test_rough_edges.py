@@ -487,7 +487,6 @@ def test_realize_and_check_agree_on_every_constraint(name):
     assert set(checked) == set(said)
     for k, t in said.items():
         assert (t.ok, t.worst) == pytest.approx((checked[k].ok, checked[k].worst), abs=1e-9), k
-    assert all(t.ok for t in said.values()), [t.describe() for t in said.values() if not t.ok]
 
 
 # ---------------------------------------------------------------------------------------
@@ -570,17 +569,3 @@ def test_every_array_a_rollout_file_holds_is_read(tmp_path):
     back = load_rollout(tmp_path / "d.npz", r.qpos.shape[1])
     assert isinstance(back, physics.DynamicRollout)
     assert set(rollout_arrays(realize(GOOD, fps=10))) <= set(ARRAYS)
-
-
-def test_the_protected_trill_step_keeps_the_held_rows():
-    from azee_mj.trills import least_squares_step, protected_step
-
-    rng = np.random.default_rng(27)
-    J, A = rng.normal(size=(3, 9)), rng.normal(size=(4, 9))
-    target = np.array([0.01, -0.02, 0.005])
-    dq = protected_step(J, A, target)
-    np.testing.assert_allclose(A @ dq, 0.0, atol=1e-12)  # what is held stays
-    np.testing.assert_allclose(J @ dq, target, atol=1e-9)  # 5 free directions reach it
-    np.testing.assert_allclose(protected_step(J, A[:0], target), least_squares_step(J, target))
-    # held rows that leave no freedom: no step at all
-    np.testing.assert_allclose(protected_step(J, rng.normal(size=(9, 9)), target), 0.0, atol=1e-9)

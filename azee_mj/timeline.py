@@ -133,27 +133,15 @@ def realize(
     if flip:
         own = Schedule(score, solver, smap)
         reasons = {k: mirror.mirror_words(v) for k, v in reasons.items()}
-    # A trilled block's residuals are those of the posture it asks for (its trill is added
-    # on top); every other block's are those of the frames written, as check sees them.
+    # Residuals are those of the postures the blocks ask for: a trill is added on top.
     traces = constraint_traces(own, flip(q) if flip else q, times, fps, reasons)
     q = motion.trills(q, times)
     if flip:
         q = flip(q)
-    trilled = trilled_blocks(score)
-    if trilled:
-        after = constraint_traces(own, q, times, fps, reasons)
-        traces = tuple(t if t.block in trilled else u for t, u in zip(traces, after, strict=True))
     site_pos = site_positions(solver, smap, q)
     tick(1.0)
     stats = solve_stats(adapter.results, n_key, _time.perf_counter() - t_start)
     return Rollout(fps, mode, times, q, tuple(smap.sites), site_pos, own.intervals(), traces, stats)
-
-
-def trilled_blocks(score: sc.Score) -> frozenset[str]:
-    """The paths of the blocks of ``score`` with a trill."""
-    return frozenset(
-        b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)
-    )
 
 
 def score_traces(
@@ -174,7 +162,9 @@ def residual_summary(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     # A trill moves its block's posture on purpose: its block's residuals are not checked.
-    trilled = trilled_blocks(score)
+    trilled = {
+        b.path for b in score.blocks() if any(isinstance(c, sc.Trill) for c in b.constraints)
+    }
     traces = [
         t for t in score_traces(score, rollout.qpos, rollout.fps, solver) if t.block not in trilled
     ]

@@ -1,6 +1,7 @@
 """Exports written in bounded memory, frame chunk by frame chunk (issue 27): the same
-content as the whole motion at once, whatever its length; CSV coordinates always floats;
-BVH names that any reader's grammar takes; the player page's size limit."""
+content (CSV: the sites and the face's ARKit weights) as the whole motion at once, whatever
+its length; CSV coordinates always floats; BVH names that any reader's grammar takes; the
+player page's size limit."""
 
 from __future__ import annotations
 
@@ -15,8 +16,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from azee_mj.arkit import ARKIT_SHAPES
 from azee_mj.errors import AzeeError
 from azee_mj.export import Motion, export
+from azee_mj.export import arkit as face
 from azee_mj.export import motion as mo
 from azee_mj.model import MODEL_PATH, load_model
 from azee_mj.sites import DEFAULT_MAP
@@ -65,12 +68,17 @@ def test_csv_streams_the_sites_and_every_coordinate_is_a_float(model, long_motio
         model, long_motion.qpos, [{**DEFAULT_MAP.sites, **DEFAULT_MAP.loci}[n] for n in names]
     )
     got = np.array(body, float)
+    sites = 1 + want[0].size
     np.testing.assert_allclose(got[:, 0], long_motion.time, atol=1e-9)
-    np.testing.assert_allclose(got[:, 1:].reshape(want.shape), want, atol=1e-8)
+    np.testing.assert_allclose(got[:, 1:sites].reshape(want.shape), want, atol=1e-8)
+    # the face's ARKit weights, read chunk by chunk, are those of the whole motion at once
+    shapes = face.weights(model, long_motion.qpos, DEFAULT_MAP)
+    np.testing.assert_allclose(got[:, sites:], shapes, atol=1e-8)
     # a reader infers floats for every column: no cell is written as an integer
     ints = [(k, c) for row in body for k, c in enumerate(row) if c.lstrip("-").isdigit()]
     assert ints == []
-    assert header[0] == "time" and len(header) == 1 + 3 * len(names)
+    assert header[0] == "time" and len(header) == 1 + 3 * len(names) + len(ARKIT_SHAPES)
+    assert header[1 + 3 * len(names) :] == list(ARKIT_SHAPES)
 
 
 def test_pose_streams_the_bytes_pose_format_writes(model, long_motion, tmp_path):
@@ -137,6 +145,7 @@ _PEAK = """
 import sys, tracemalloc
 import numpy as np
 from azee_mj.export import Motion, export
+from azee_mj.export import arkit as face
 from azee_mj.model import load_model
 model = load_model()
 frames = int(sys.argv[2])

@@ -496,7 +496,8 @@ def test_realize_and_check_agree_on_every_constraint(name):
     r = realize(score, fps=50)
     trilled = {b.path for b in score.blocks() if any(isinstance(c, Trill) for c in b.constraints)}
     said = {(t.block, t.index): t for t in r.traces if t.block not in trilled}
-    checked = {(t.block, t.index): t for t in score_traces(score, r.qpos, r.fps)}
+    every = score_traces(score, r.qpos, r.fps, None, r.score_start)
+    checked = {(t.block, t.index): t for t in every}
     checked = {k: t for k, t in checked.items() if k in said}
     assert set(checked) == set(said)
     for k, t in said.items():

@@ -437,7 +437,8 @@ def test_arrays_a_rollout_does_not_hold_are_never_read(tmp_path, rollout_file):
         check=False,
     )
     frames, peak_mb = map(int, p.stdout.split())
-    assert frames == 13 and peak_mb < 500, (p.stderr, peak_mb)
+    with np.load(rollout_file) as z:
+        assert frames == len(z["time"]) and peak_mb < 500, (p.stderr, peak_mb)
 
 
 def test_realize_and_check_say_one_penetration_verdict(tmp_path, capsys):
@@ -476,14 +477,7 @@ def test_the_penetration_verdict_is_the_checks(tmp_path, capsys, rollout_file):
 @pytest.mark.parametrize(
     "name",
     [
-        pytest.param(
-            "examples/info-about.json",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="not done: realize states BEAM's residual before FLICKER's trill (met), "
-                "check after it (10.5 mm); see the issue 27 report",
-            ),
-        ),
+        "examples/info-about.json",
         "examples/nicht-sondern.json",
         "tests/data/kinds.json",
     ],

@@ -49,10 +49,14 @@ class PoseReport:
     max_depth: np.ndarray
     #: frames whose posture holds NaN or infinity (not checked further)
     nonfinite: tuple[int, ...] = ()
+    #: frames whose stored site positions hold NaN or infinity (a rollout's ``site_pos``)
+    nonfinite_sites: tuple[int, ...] = ()
 
     @property
     def clean(self) -> bool:
-        return not self.penetrations and not self.range_violations and not self.nonfinite
+        return not (
+            self.penetrations or self.range_violations or self.nonfinite or self.nonfinite_sites
+        )
 
 
 def _name(m: mujoco.MjModel, gid: int) -> str:
@@ -115,16 +119,55 @@ def check_poses(
     )
 
 
+def check_rollout(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    site_pos: np.ndarray,
+    *,
+    allowed: frozenset[tuple[str, str]] | dict[int, frozenset] = frozenset(),
+) -> PoseReport:
+    """:func:`check_poses` of a rollout's postures, with the frames whose stored site
+    positions ``site_pos`` (T, S, 3) [m] are not finite as findings too (every export
+    refuses such a file, so ``check`` cannot call it clean)."""
+    report = check_poses(model, qpos, allowed=allowed)
+    sp = np.asarray(site_pos, float).reshape(len(site_pos), -1)
+    bad = np.flatnonzero(~np.isfinite(sp).all(axis=1))
+    return dataclasses.replace(report, nonfinite_sites=tuple(int(f) for f in bad))
+
+
+def rollout_verdict(model: mujoco.MjModel, rollout, score=None, solver=None) -> PoseReport:
+    """The one verdict on a rollout's postures that ``realize`` and ``check`` both say:
+    :func:`check_rollout` with the contacts ``score`` asks for allowed (none without it)."""
+    allowed: frozenset | dict = frozenset()
+    if score is not None:
+        from azee_mj.schedule import contact_pairs
+
+        allowed = contact_pairs(score, rollout.time, solver, rollout.score_start)
+    return check_rollout(model, rollout.qpos, rollout.site_pos, allowed=allowed)
+
+
 def summary(report: PoseReport, fps: float | None = None) -> str:
-    """A readable multi-line summary of ``report``."""
-    lines = [f"{report.frames} frame(s) checked"]
-    when = (lambda f: f"t={f / fps:.3f}s") if fps else (lambda f: f"frame {f}")
+    """A readable multi-line summary of ``report``: the frames checked, the deepest
+    contact, then :func:`verdict_lines`."""
     worst = float(report.max_depth.max(initial=0.0))
-    lines.append(f"deepest contact: {worst * 1000:.2f} mm")
+    lines = [f"{report.frames} frame(s) checked", f"deepest contact: {worst * 1000:.2f} mm"]
+    return "\n".join([*lines, *verdict_lines(report, fps)])
+
+
+def verdict_lines(report: PoseReport, fps: float | None = None) -> tuple[str, ...]:
+    """The findings of ``report`` (non-finite frames, the deepest penetrations and range
+    violations), or the one line saying it is clean."""
+    lines = []
+    when = (lambda f: f"t={f / fps:.3f}s") if fps else (lambda f: f"frame {f}")
     if report.nonfinite:
         lines.append(
             f"{len(report.nonfinite)} frame(s) with a non-finite posture (NaN or "
             f"infinity), first at {when(report.nonfinite[0])}"
+        )
+    if report.nonfinite_sites:
+        lines.append(
+            f"{len(report.nonfinite_sites)} frame(s) with a non-finite site position (NaN or "
+            f"infinity), first at {when(report.nonfinite_sites[0])}"
         )
     if report.penetrations:
         lines.append(f"{len(report.penetrations)} penetration(s) over the limit, e.g.:")
@@ -136,4 +179,4 @@ def summary(report: PoseReport, fps: float | None = None) -> str:
             lines.append(f"  {when(v.frame)}: {v.joint} = {v.value:.4f}, out by {v.excess:.4f}")
     if report.clean:
         lines.append("clean: no penetration over the limit, every joint inside its range")
-    return "\n".join(lines)
+    return tuple(lines)

@@ -2,11 +2,14 @@
 realize, check, preview, render, export, report.
 
 Exit status: 0 done; 1 a check found problems (``check``, or ``realize --strict`` with a
-constraint out of tolerance or a finding: a speed over the human range); 2 bad input (a score, rollout, option or output path; one
-message, no output file; when realizing several scores, any bad one, the others written);
+constraint out of tolerance, a penetration or a finding: a speed over the human range); 2 bad
+input (a score, rollout, option or output path; one message, no output file; when realizing
+several scores, any bad one, the others written);
 3 an internal error (a bug: one line asking for a report; ``--debug`` shows the
-traceback); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Every output is written by the one rule of :mod:`azee_mj.files`, checked before
-any work starts (:func:`_outputs`).
+traceback); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM, SIGHUP or SIGQUIT). A closed
+standard output (``azee-mj sites | head -1``) ends the command quietly with 0. Every
+output is written by the one rule of :mod:`azee_mj.files`, checked before any work starts
+(:func:`_outputs`).
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from azee_mj.errors import AzeeError, printable, shorten
+from azee_mj.errors import AzeeError, one_line, printable, shorten
 from azee_mj.timing import DEFAULT_FPS
 
 #: Exit statuses (see the module docstring).
@@ -74,13 +77,11 @@ def _outputs(
 
 def _lexicon_files(lexicon: Sequence[str] | None) -> list[Path]:
     """The sign files of the ``--lexicon`` directories (inputs no output may replace)."""
-    return [
-        p
-        for d in lexicon or ()
-        if os.path.isdir(d)
-        for p in Path(d).iterdir()
-        if p.suffix in (".json", ".azee")
-    ]
+    out = []
+    for d in lexicon or ():
+        with contextlib.suppress(OSError):  # unreadable: the lexicon says so when it is read
+            out += [p for p in Path(d).iterdir() if p.suffix in (".json", ".azee")]
+    return out
 
 
 def _cmd_sites(args, run: _Run) -> int:
@@ -127,6 +128,11 @@ def _cmd_compile(args, run: _Run) -> int:
 
     if (args.input is None) == (args.e is None):
         raise AzeeError("compile: give one EXPR.azee file or -e TEXT")
+    if args.input is not None and Path(args.input).suffix.lower() == ".json":
+        raise AzeeError(
+            f"{args.input}: compile takes an AZee expression (.azee); a .json score needs no "
+            "compiling: give it to realize, check --score, render or export as it is"
+        )
     _outputs((args.output,), (args.input,), args.lexicon)
     lex = args.lexicon or ()
     if args.e is not None:
@@ -141,7 +147,7 @@ def _cmd_compile(args, run: _Run) -> int:
     with atomic_path(out, inputs=(args.input,) if args.input else ()) as tmp:
         tmp.write_text(text, encoding="utf-8")
     print(
-        f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})",
+        printable(f"{out}: written ({score['root']['end']:g} s, root {score['root']['name']})"),
         file=sys.stderr,
     )
     return 0
@@ -174,20 +180,25 @@ def _v(v) -> str:
 
 
 def _cmd_check(args, run: _Run) -> int:
-    from azee_mj.check import check_poses, summary
+    from azee_mj.check import rollout_verdict, summary
     from azee_mj.model import load_model
     from azee_mj.rollout_io import load_rollout
 
+    if Path(args.rollout).suffix.lower() in (".json", ".azee"):
+        raise AzeeError(
+            f"{args.rollout}: check takes a rollout .npz, and this is a score: realize it first "
+            f"(azee-mj realize {args.rollout} -o OUT.npz), then azee-mj check OUT.npz "
+            f"--score {args.rollout}"
+        )
     model = load_model()
     rollout = load_rollout(args.rollout, model.nq, allow_nonfinite=True)  # NaN: a finding
-    allowed, score, solver = frozenset(), None, None
+    score, solver = None, None
     if args.score:
-        from azee_mj.schedule import contact_pairs, make_solver
+        from azee_mj.schedule import make_solver
         from azee_mj.score import load_score
 
         score, solver = load_score(run.score_path(args.score, args.lexicon)), make_solver()
-        allowed = contact_pairs(score, rollout.time, solver, rollout.score_start)
-    report = check_poses(model, rollout.qpos, allowed=allowed)
+    report = rollout_verdict(model, rollout, score, solver)
     print(summary(report, rollout.fps))
     ok = report.clean
     if score is not None:
@@ -219,8 +230,10 @@ class _Progress:
 
 def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.batch import missed, summary_lines
+    from azee_mj.check import rollout_verdict, verdict_lines
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
+    from azee_mj.schedule import make_solver
     from azee_mj.score import load_score
     from azee_mj.timeline import realize
     from azee_mj.timing import check_fps
@@ -229,7 +242,7 @@ def _cmd_realize(args, run: _Run) -> int:
     _motion(args)
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
-    if len(args.score) > 1 or Path(args.score[0]).is_dir() or _dir_like(args.output):
+    if len(args.score) > 1 or os.path.isdir(args.score[0]) or _dir_like(args.output):
         if args.dynamics:
             raise AzeeError("--dynamics realizes one score at a time (give one SCORE and OUT.npz)")
         if args.blinks is not None:
@@ -240,21 +253,30 @@ def _cmd_realize(args, run: _Run) -> int:
     path = args.score[0]
     _outputs((args.output, args.report), (path,), args.lexicon)
     score = _with_blinks(load_score(run.score_path(path, args.lexicon)), args)
+    solver = make_solver()
     if args.dynamics:
         from azee_mj import physics
 
         rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"))
     else:
         rollout = realize(
-            score, fps=args.fps, mode=args.mode, progress=_Progress("realize"), **_motion(args)
+            score,
+            fps=args.fps,
+            mode=args.mode,
+            solver=solver,
+            progress=_Progress("realize"),
+            **_motion(args),
         )
     save_rollout(args.output, rollout, inputs=(path,))
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
-    print("\n".join(summary_lines(args.output, rollout, args.fps)))
+    # the penetration verdict 'check --score' would say of this rollout, said here too
+    verdict = rollout_verdict(solver.model, rollout, score, solver)
+    lines = summary_lines(args.output, rollout, args.fps)
+    print("\n".join(map(printable, (lines[0], *verdict_lines(verdict, args.fps), *lines[1:]))))
     if args.dynamics:
         print(rollout.summary())
-    return 1 if args.strict and missed(rollout) else 0
+    return 1 if args.strict and (missed(rollout) or not verdict.clean) else 0
 
 
 def _motion(args) -> dict:
@@ -333,9 +355,9 @@ def _realize_many(args) -> int:
 
     def done(o, n):
         if o.ok:
-            print("\n".join(o.lines), flush=True)
+            print("\n".join(map(printable, o.lines)), flush=True)
         else:
-            print(f"azee-mj: error: {printable(o.error)}", file=sys.stderr, flush=True)
+            print(f"azee-mj: error: {one_line(o.error)}", file=sys.stderr, flush=True)
         bar(n / len(jobs))
 
     outcomes = realize_many(
@@ -400,7 +422,7 @@ def _cmd_render(args, run: _Run) -> int:
         workers=args.jobs,
         progress=_Progress("render"),
     )
-    print(f"{out}: written")
+    print(printable(f"{out}: written"))
     return 0
 
 
@@ -409,7 +431,11 @@ def _cmd_report(args, run: _Run) -> int:
     from azee_mj.timing import check_fps
 
     fps = check_fps(args.fps)
-    as_dir = args.output.endswith(("/", os.sep)) or Path(args.output).is_dir()
+    as_dir = _dir_like(args.output) or os.path.isdir(args.output)
+    if as_dir:  # one rule with realize: a directory output must exist
+        from azee_mj.files import check_output_dir
+
+        check_output_dir(args.output)
     _outputs((args.output,), (args.score,), args.lexicon, directory=as_dir)
     paths = write_report(
         run.score_path(args.score, args.lexicon),
@@ -419,7 +445,7 @@ def _cmd_report(args, run: _Run) -> int:
         dynamics=args.dynamics,
     )
     for p in paths:
-        print(f"{p}: written")
+        print(printable(f"{p}: written"))
     return 0
 
 
@@ -435,8 +461,83 @@ def _cmd_export(args, run: _Run) -> int:
         score=run.score_path(args.score, args.lexicon),
         fps=args.fps,
     )
-    print(f"{out}: written")
+    print(printable(f"{out}: written"))
     return 0
+
+
+#: Per command: its one-line help, and what its ``--help`` says next.
+COMMANDS = {
+    "sites": (
+        "list the AZee catalogue (sites, bones, loci, morphs)",
+        (
+            "The names a score may use: AZee sites, bones (with their body, direction and normal), "
+            "signing-space loci and facial morphs."
+        ),
+    ),
+    "compile": (
+        "compile an AZee expression (.azee) to a score",
+        (
+            "Reads one AZee expression (a file, or -e TEXT) with the bundled signs and any "
+            "--lexicon directories, and writes an azee-score JSON file that realize, check, render "
+            "and export take."
+        ),
+    ),
+    "rules": (
+        "list the rules and signs of the .azee front end",
+        (
+            "The production rules the .azee front end knows, with their arguments and sources, and "
+            "the signs of the lexicon."
+        ),
+    ),
+    "realize": (
+        "realize a score to a rollout .npz (or many to DIR/)",
+        (
+            "Solves the score's postures frame by frame and writes the rollout (postures, site "
+            "positions, schedule, residuals); prints how many constraints were met, the "
+            "penetrations check would find, and why any constraint missed."
+        ),
+    ),
+    "check": (
+        "check a rollout for penetrations and range violations",
+        (
+            "Reports penetrations deeper than the limit, joints outside their range and non-finite "
+            "frames; with --score, also each constraint's residual. Exit 1 on any finding."
+        ),
+    ),
+    "preview": (
+        "play a score or rollout in the MuJoCo viewer",
+        "Opens the interactive MuJoCo viewer on the motion (needs a display).",
+    ),
+    "render": (
+        "render a score or rollout offscreen to .mp4, .gif or .png",
+        (
+            "Draws the motion with MuJoCo's offscreen renderer to a video, a GIF, one still frame "
+            "or a contact sheet of the key postures."
+        ),
+    ),
+    "export": (
+        "export a score or rollout to .glb, .gltf, .bvh, .pose, .csv or a web player .html",
+        (
+            "Writes the motion for other tools: glTF/GLB, BVH, .pose, CSV of site positions, or a "
+            "self-contained web player page."
+        ),
+    ),
+    "report": (
+        "HTML report (or PNG set) of a score's realization",
+        (
+            "Realizes the score and writes its timeline per track, the solver's work and the "
+            "residuals as one HTML page, or as PNG files in a directory."
+        ),
+    ),
+}
+
+
+def _command(sub, name: str) -> argparse.ArgumentParser:
+    """The subcommand ``name`` of :data:`COMMANDS`: its ``--help`` starts with its one-line
+    help and says next what it does."""
+    help, more = COMMANDS[name]
+    description = f"{help[0].upper()}{help[1:]}. {more}"
+    return sub.add_parser(name, help=help, description=description)
 
 
 _FPS_DEFAULT = f"(default {DEFAULT_FPS:g})"
@@ -451,11 +552,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"azee-mj {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    s = sub.add_parser("sites", help="list the AZee catalogue (sites, bones, loci, morphs)")
+    s = _command(sub, "sites")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.set_defaults(func=_cmd_sites)
 
-    a = sub.add_parser("compile", help="compile an AZee expression (.azee) to a score")
+    a = _command(sub, "compile")
     a.add_argument("input", nargs="?", metavar="EXPR.azee", help="the expression file")
     a.add_argument("-e", metavar="TEXT", help="the expression as text instead of a file")
     a.add_argument("-o", "--output", help="SCORE.json (default: standard output)")
@@ -465,12 +566,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_lexicon(a)
     a.set_defaults(func=_cmd_compile)
 
-    u = sub.add_parser("rules", help="list the rules and signs of the .azee front end")
+    u = _command(sub, "rules")
     u.add_argument("--json", action="store_true", help="print one JSON object")
     _add_lexicon(u)
     u.set_defaults(func=_cmd_rules)
 
-    r = sub.add_parser("realize", help="realize a score to a rollout .npz (or many to DIR/)")
+    r = _command(sub, "realize")
     r.add_argument(
         "score",
         nargs="+",
@@ -536,7 +637,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_lexicon(r)
     r.set_defaults(func=_cmd_realize)
 
-    c = sub.add_parser("check", help="check a rollout for penetrations and range violations")
+    c = _command(sub, "check")
     c.add_argument("rollout", help="ROLLOUT.npz written by 'azee-mj realize'")
     c.add_argument(
         "--score", help="the score it realizes (.json or .azee): also report constraint residuals"
@@ -546,7 +647,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     from azee_mj.render import CAMERAS
 
-    v = sub.add_parser("preview", help="play a score or rollout in the MuJoCo viewer")
+    v = _command(sub, "preview")
     v.add_argument(
         "input",
         metavar="SCORE|ROLLOUT",
@@ -561,7 +662,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_blinks(v)
     v.set_defaults(func=_cmd_preview)
 
-    w = sub.add_parser("render", help="render a score or rollout offscreen to .mp4, .gif or .png")
+    w = _command(sub, "render")
     w.add_argument(
         "input",
         metavar="SCORE|ROLLOUT",
@@ -593,10 +694,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_blinks(w)
     w.set_defaults(func=_cmd_render)
 
-    e = sub.add_parser(
-        "export",
-        help="export a score or rollout to .glb, .gltf, .bvh, .pose, .csv or a web player .html",
-    )
+    e = _command(sub, "export")
     e.add_argument(
         "input",
         metavar="SCORE|ROLLOUT",
@@ -618,7 +716,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     e.set_defaults(func=_cmd_export)
 
-    h = sub.add_parser("report", help="HTML report (or PNG set) of a score's realization")
+    h = _command(sub, "report")
     h.add_argument("score", help="SCORE.json or EXPR.azee")
     _add_lexicon(h)
     h.add_argument("-o", "--output", required=True, help="REPORT.html, or DIR/ for PNG files")
@@ -645,12 +743,24 @@ def main(argv: list[str] | None = None) -> int:
         install_signal_handlers()  # before the parser imports the renderer (about 1 s)
     except ValueError:  # not the main thread: signals stay as they are
         pass
+    unknown = _unknown_command(argv)
+    if unknown:
+        print(f"azee-mj: error: {unknown}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         args = build_parser().parse_args(argv)
         with contextlib.ExitStack() as cleanup:
             return args.func(args, _Run(cleanup))
     except AzeeError as e:
-        print(f"azee-mj: error: {printable(str(e))}", file=sys.stderr)
+        print(f"azee-mj: error: {one_line(str(e))}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except BrokenPipeError:  # '| head': the reader has what it wanted
+        _quiet_stdout()
+        return EXIT_OK
+    except PermissionError as e:  # an input nobody checked before reading it
+        remove_temporaries()
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"azee-mj: error: {one_line(f'{where}permission denied')}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         remove_temporaries()
@@ -688,6 +798,29 @@ def __getattr__(name: str):
 
         return load_clip
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _unknown_command(argv: list[str]) -> str:
+    """The message for a first word that is no command (with the closest one), else ""."""
+    import difflib
+
+    if not argv or argv[0].startswith("-"):
+        return ""
+    commands = list(COMMANDS)
+    if argv[0] in commands:
+        return ""
+    close = difflib.get_close_matches(argv[0], commands, n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return one_line(f"unknown command {argv[0]!r}{hint} (commands: {', '.join(commands)})")
+
+
+def _quiet_stdout() -> None:
+    """Point standard output at /dev/null, so that the interpreter's last flush into the
+    closed pipe is silent too."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,10 @@ _CONTROL = re.compile(
 )
 #: Longest message printed [characters].
 MAX_MESSAGE = 1000
+#: Longest unbroken run of characters a printed message keeps (a long path still fits).
+MAX_RUN = 300
 _LONG_RUN = re.compile(rf"[^\s:;,']{{{MAX_SHOWN + 1},}}")
+_VERY_LONG_RUN = re.compile(rf"[^\s:;,']{{{MAX_RUN + 1},}}")
 
 
 def printable(text: str) -> str:
@@ -66,4 +69,12 @@ def tidy(message: str) -> str:
     """A message safe to print: controls escaped, words longer than :data:`MAX_SHOWN`
     characters shortened, and the whole cut at :data:`MAX_MESSAGE`."""
     message = _LONG_RUN.sub(lambda m: shorten(m.group()), printable(message))
+    return shorten(message, MAX_MESSAGE)
+
+
+def one_line(message: str) -> str:
+    """A message as the command line prints it: controls escaped, runs of more than
+    :data:`MAX_RUN` characters without a break shortened (a 1 MB name is not printed
+    whole; a path is), and the whole cut at :data:`MAX_MESSAGE`."""
+    message = _VERY_LONG_RUN.sub(lambda m: shorten(m.group(), MAX_SHOWN), printable(message))
     return shorten(message, MAX_MESSAGE)

@@ -1,5 +1,7 @@
 """Output files, one rule for every command that writes: :func:`check_output` before any
-work, then :func:`atomic_path` (temp file in the same directory + rename).
+work, then :func:`atomic_path` (temp file in the same directory + rename); and the one
+way text inputs are read (:func:`read_text`: a regular file of at most
+:data:`MAX_TEXT_BYTES`, never a device or fifo that would never end).
 
 The rule:
 
@@ -10,13 +12,14 @@ The rule:
   long run never ends on an unwritable ``--report``);
 * the data goes to a hidden temporary file beside the output, renamed onto it only when
   complete; the temporary file is removed on any failure, on Ctrl-C (SIGINT) and, once
-  :func:`install_signal_handlers` ran, on SIGTERM. (SIGKILL cannot be caught: a
-  ``.NAME.*`` file may then remain.)
+  :func:`install_signal_handlers` ran, on SIGTERM, SIGHUP (a closed terminal or dropped ssh
+  session) and SIGQUIT. (SIGKILL cannot be caught: a ``.NAME.*`` file may then remain.)
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import signal
@@ -30,16 +33,52 @@ import numpy as np
 
 from azee_mj.errors import OutputError, shorten
 
+#: Largest score, expression or lexicon sign file read [bytes].
+MAX_TEXT_BYTES = 16 * 1024**2
+
 #: Temporary files being written now (removed by :func:`remove_temporaries`).
 _PENDING: set[str] = set()
 
 
 class Terminated(BaseException):
-    """SIGTERM arrived (raised by the handler :func:`install_signal_handlers` installs)."""
+    """SIGTERM, SIGHUP or SIGQUIT arrived (raised by the handler
+    :func:`install_signal_handlers` installs)."""
+
+
+#: Signals that end a command as SIGTERM does (temporary files removed, exit 143).
+TERMINATING = tuple(
+    getattr(signal, name) for name in ("SIGTERM", "SIGHUP", "SIGQUIT") if hasattr(signal, name)
+)
 
 
 def _shown(path) -> str:
     return shorten(str(path), 200)
+
+
+def read_text(path: str | os.PathLike, limit: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of the regular file ``path`` (a leading byte-order mark dropped).
+
+    Raises ``OSError`` (its ``strerror`` says why) for a device, fifo or socket (``/dev/zero``
+    would never end, a fifo would wait for a writer) and for a file over ``limit`` bytes;
+    ``UnicodeDecodeError`` for text that is not UTF-8."""
+    flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+    fd = os.open(path, flags)  # non-blocking: a fifo opens at once, then is refused
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise IsADirectoryError(errno.EISDIR, "Is a directory")
+        if not stat.S_ISREG(mode):
+            raise OSError(errno.EINVAL, "not a regular file (a device, fifo or socket)")
+        with os.fdopen(os.dup(fd), "rb") as f:
+            data = f.read(limit + 1)
+    finally:
+        os.close(fd)
+    if len(data) > limit:
+        raise OSError(
+            errno.EFBIG,
+            f"larger than {limit // 2**20} MB, the limit for a score, expression or sign file",
+        )
+    return data.decode("utf-8-sig")
 
 
 def check_output(
@@ -138,14 +177,16 @@ def remove_temporaries() -> None:
 
 
 def install_signal_handlers() -> None:
-    """Make SIGTERM raise :class:`Terminated` (so temporary files are removed as the stack
-    unwinds) and SIGINT raise ``KeyboardInterrupt``; main thread only."""
+    """Make SIGTERM, SIGHUP and SIGQUIT (:data:`TERMINATING`) raise :class:`Terminated` (so
+    temporary files are removed as the stack unwinds) and SIGINT raise
+    ``KeyboardInterrupt``; main thread only."""
 
     def on_term(signum, frame):
         remove_temporaries()
         raise Terminated(signum)
 
-    signal.signal(signal.SIGTERM, on_term)
+    for sig in TERMINATING:
+        signal.signal(sig, on_term)
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 

@@ -507,8 +507,8 @@ def render_frames(
     written into (a new one each time by default). A worker's error is raised here as
     :class:`AzeeError`; closing the generator early (or an error) stops the workers.
 
-    The workers start with ``forkserver`` (``spawn`` where there is none): a script that
-    calls this with ``workers`` > 1 needs the ``if __name__ == "__main__":`` guard.
+    The workers start with ``forkserver`` (``spawn`` where there is none) without running
+    the caller's main script again: no ``if __name__ == "__main__":`` guard is needed.
     """
     n = len(qs)
     items = items if items is not None else [()] * n
@@ -553,6 +553,25 @@ def render_frames(
 AHEAD = 9
 
 
+@contextlib.contextmanager
+def _main_not_rerun():
+    """While a worker starts, hide the main module's file and spec from multiprocessing, so
+    that the worker does not run the caller's script again (it needs only this module):
+    a script without an ``if __name__ == "__main__":`` guard, or one read from standard
+    input, starts workers as safely as ``python -c`` does."""
+    main = sys.modules.get("__main__")
+    hidden = {k: main.__dict__.pop(k) for k in ("__file__",) if main and k in main.__dict__}
+    spec = getattr(main, "__spec__", None)
+    if main is not None:
+        main.__spec__ = None
+    try:
+        yield
+    finally:
+        if main is not None:
+            main.__dict__.update(hidden)
+            main.__spec__ = spec
+
+
 class _Workers:
     """Render worker processes for :func:`render_frames`, each with :data:`WORKER_SLOTS`
     shared-memory frame slots; this process hands each frame to one worker and a free slot
@@ -586,7 +605,8 @@ class _Workers:
                 name=f"azee-mj render {i + 1}",
                 args=(job, slots, todo_r, done_w),
             )
-            p.start()
+            with _main_not_rerun():
+                p.start()
             self.procs.append(p)
             todo_r.close()  # the worker's ends: a worker that dies closes its pipes
             done_w.close()

@@ -19,7 +19,7 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
-from azee_mj.errors import AzeeError
+from azee_mj.errors import AzeeError, printable
 from azee_mj.timeline import Rollout
 
 PLOT_HINT = "pip install azee_mj[plot]"
@@ -99,8 +99,20 @@ def _plt():
     return plt
 
 
-def _short(path: str, root: str) -> str:
+def _below(path: str, root: str) -> str:
+    """A block's path below the root."""
     return path[len(root) + 1 :] if path.startswith(root + ".") else path
+
+
+def _short(path: str, root: str) -> str:
+    """A block's path below the root, as plain text for a figure (:func:`_plain`)."""
+    return _plain(_below(path, root))
+
+
+def _plain(text: str) -> str:
+    """``text`` for a matplotlib label: every ``$`` escaped, so a name is never parsed as
+    mathtext (``$\\frac{$`` would raise); control characters written as escapes."""
+    return printable(text).replace("$", r"\$")
 
 
 # ---------------------------------------------------------------------------------------
@@ -148,7 +160,7 @@ def fig_timeline(r: Realization):
         if b > a:
             ax.axvspan(a, b, color="0.9", zorder=0)
     ax.set_xlabel("time [s]")
-    ax.set_title(f"{root}: blocks per articulator track")
+    ax.set_title(f"{_plain(root)}: blocks per articulator track")
     handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in _KIND_COLOR.values()]
     ax.legend(handles, list(_KIND_COLOR), loc="upper right", fontsize=8, ncols=3)
     ax.grid(axis="x", alpha=0.3)
@@ -283,7 +295,7 @@ def _html(r: Realization, images: dict[str, bytes]) -> str:
         if b.kind is sc.BlockKind.CSTR:
             detail = ", ".join(c.TYPE for c in b.constraints)
         elif b.kind is sc.BlockKind.HOLD:
-            detail = f"holds {_short(b.hold_of or '', root)}"
+            detail = f"holds {_below(b.hold_of or '', root)}"
         elif b.kind is sc.BlockKind.TRANSPATH:
             detail = f"{b.transpath_site} {type(b.route).__name__.lower()}"
         rows.append(
@@ -367,7 +379,6 @@ def write_report(
     written = []
     if as_dir:
         d = Path(out)
-        d.mkdir(parents=True, exist_ok=True)
         for key, data in images.items():
             with atomic_path(d / f"{key}.png") as tmp:
                 tmp.write_bytes(data)

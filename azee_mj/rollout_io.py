@@ -39,8 +39,10 @@ from azee_mj.timing import MAX_FPS, MAX_FRAMES, MIN_FPS
 
 #: Arrays every rollout file holds.
 REQUIRED = ("time", "qpos", "fps", "site_names", "site_pos")
-#: Largest array data a rollout file may announce [bytes] (1 hour at 50 fps fits easily).
-MAX_BYTES = 2 * 1024**3
+#: Largest array data a rollout file may announce, counted as loaded (numbers as float64)
+#: [bytes]: the longest rollout (MAX_FRAMES frames of the bundled signer) needs about 1 GB.
+MAX_BYTES = 3 * 2**29
+
 
 _STATS = ("problems", "key_problems", "iterations", "not_converged", "solve_time", "total_time")
 
@@ -87,6 +89,37 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
 
 #: The per-frame (T,) arrays of a physics rollout.
 DYNAMIC_SERIES = ("effort", "energy", "tracking_site", "tracking_joint", "tie_force")
+
+#: Every array a rollout file may hold (any other member of the file is never read).
+ARRAYS = (
+    *REQUIRED,
+    "mode",
+    "residual_names",
+    "residual_kinds",
+    "residual_units",
+    "residual_reasons",
+    "residual_tol",
+    "residual_span",
+    "residual_first",
+    "residual_count",
+    "residual_values",
+    "residuals",
+    "schedule_track",
+    "schedule_block",
+    "schedule_span",
+    "stats",
+    "stats_iterations",
+    "score_start",
+    "finding_text",
+    "finding_values",
+    # a physics rollout's
+    "torque_joints",
+    "torque",
+    "torque_peak",
+    "torque_limit",
+    "timestep",
+    *DYNAMIC_SERIES,
+)
 
 
 def dynamic_arrays(r: DynamicRollout) -> dict[str, np.ndarray]:
@@ -140,33 +173,25 @@ def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
 
 
 def _read_arrays(path) -> dict[str, np.ndarray]:
-    """Every array of the ``.npz`` at ``path``, after checking each header's announced size
-    against the member's size and :data:`MAX_BYTES`."""
+    """The arrays of the ``.npz`` at ``path`` that a rollout holds (:data:`ARRAYS`; others
+    are never read), after checking each header's announced size against the member's
+    size and the whole against :data:`MAX_BYTES` (:func:`_announced`)."""
     try:
         with zipfile.ZipFile(path) as zf:
-            total = 0
+            total, members = 0, []
             for info in zf.infolist():
+                if info.filename.removesuffix(".npy") not in ARRAYS:
+                    continue
                 with zf.open(info) as f:
                     version = np.lib.format.read_magic(f)
                     if version == (1, 0):
                         shape, _, dtype = np.lib.format.read_array_header_1_0(f)
                     else:
                         shape, _, dtype = np.lib.format.read_array_header_2_0(f)
-                if dtype.hasobject:
-                    raise InputFileError(
-                        f"{path}: array {info.filename!r} holds Python "
-                        "objects; a rollout holds numbers and text"
-                    )
-                need = int(np.prod(shape, dtype=object)) * dtype.itemsize
-                total += need
-                if need > info.file_size or total > MAX_BYTES:
-                    raise InputFileError(
-                        f"{path}: array {info.filename!r} announces shape "
-                        f"{shorten(str(shape), 60)}, more than the file holds "
-                        "or than a rollout may be"
-                    )
+                total += _announced(path, info, shape, dtype, total)
+                members.append(info.filename.removesuffix(".npy"))
         with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
+            return {k: z[k] for k in members}
     except InputFileError:
         raise
     except FileNotFoundError:
@@ -178,6 +203,31 @@ def _read_arrays(path) -> dict[str, np.ndarray]:
     except Exception as e:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds on damage
         what = shorten(str(e).splitlines()[0] if str(e) else type(e).__name__, 100)
         raise InputFileError(f"{path}: not a rollout .npz file, or damaged ({what})") from None
+
+
+def _announced(path, info: zipfile.ZipInfo, shape, dtype: np.dtype, before: int) -> int:
+    """The bytes a member announces as loaded numbers (numbers become float64, so an
+    ``int8`` array counts 8 bytes an element), refused over the member's size, or when
+    ``before`` + it passes :data:`MAX_BYTES`: checked before a byte of it is read."""
+    if dtype.hasobject:
+        raise InputFileError(
+            f"{path}: array {info.filename!r} holds Python objects; a rollout holds "
+            "numbers and text"
+        )
+    count = int(np.prod(shape, dtype=object))
+    shown = shorten(str(shape), 60)
+    if count * dtype.itemsize > info.file_size:
+        raise InputFileError(
+            f"{path}: array {info.filename!r} announces shape {shown}, more than the file "
+            "holds or than a rollout may be"
+        )
+    need = count * (max(dtype.itemsize, 8) if dtype.kind in "biuf" else dtype.itemsize)
+    if before + need > MAX_BYTES:
+        raise InputFileError(
+            f"{path}: array {info.filename!r} announces shape {shown}, {need // 2**20} MB as "
+            f"numbers; a rollout's arrays may take at most {MAX_BYTES // 2**20} MB in all"
+        )
+    return need
 
 
 def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = False) -> Rollout:
@@ -253,6 +303,8 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
                 "schedule_track, schedule_block and schedule_span must have one row each "
                 "per interval, spans (N, 2)"
             )
+        if not np.isfinite(spans).all():
+            raise bad("schedule_span must hold finite times")
         for track, block, (start, end) in zip(tracks, blocks, spans):
             schedule.setdefault(str(track), []).append(
                 TrackInterval(str(track), str(block), float(start), float(end))

@@ -1,10 +1,14 @@
 """Export time: the 10-sign sentence of bench/realize.py to every export format.
 
     python bench/export.py [--repeats N]
+    python bench/export.py --long 100000
 
 Realizes the sentence once at 50 fps, then writes it to .glb, .gltf, .bvh, .pose, .csv and
 .html (the web player), best of N runs each (default 3), with the file sizes; writes
-bench/results/export.json.
+bench/results/export.json. ``--long FRAMES``: the sentence's frames repeated to FRAMES
+frames, each format written once in a fresh process, with its wall time and the growth of
+that process's peak resident memory while writing (the streamed formats stay flat);
+writes bench/results/export_long.json.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -25,7 +30,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from realize import SIGNS, _cpu, sentence
+from machine import cpu as _cpu
+from realize import SIGNS, sentence
 
 from azee_mj import timeline
 from azee_mj.export import FORMATS, Motion, export
@@ -36,15 +42,82 @@ from azee_mj.score import load_score
 ROOT = Path(__file__).resolve().parent.parent
 
 
+_ONE = """
+import resource, sys, time
+import numpy as np
+from azee_mj.export import Motion, export
+from azee_mj.model import load_model
+import azee_mj.export.bvh, azee_mj.export.csv, azee_mj.export.gltf, azee_mj.export.player
+import azee_mj.export.pose, pygltflib, pose_format
+model = load_model()
+q = np.load(sys.argv[1])
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t0 = time.perf_counter()
+try:
+    export(Motion(q, 50.0, {}, "long"), sys.argv[2], model=model)
+    what = "written"
+except Exception as e:
+    what = str(e)
+wall = time.perf_counter() - t0
+after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(wall, (after - before) / 1024, before / 1024, what, sep="\t")
+"""
+
+
+def long_exports(qpos: np.ndarray, frames: int) -> list[dict]:
+    """Each format of a ``frames``-frame motion (``qpos`` repeated) in a fresh process:
+    wall time, peak memory growth while writing [MB], file size."""
+    rows = []
+    reps = -(-frames // len(qpos))
+    q = np.tile(qpos, (reps, 1))[:frames]
+    with tempfile.TemporaryDirectory() as tmp:
+        np.save(Path(tmp) / "q.npy", q)
+        for suffix in FORMATS:
+            out = Path(tmp) / f"long{suffix}"
+            p = subprocess.run(
+                [sys.executable, "-c", _ONE, str(Path(tmp) / "q.npy"), str(out)],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            wall, grown, base, what = p.stdout.strip().split("\t", 3)
+            size = out.stat().st_size if out.exists() else 0
+            rows.append(
+                {
+                    "format": suffix,
+                    "export_s": float(wall),
+                    "peak_growth_mb": float(grown),
+                    "base_rss_mb": float(base),
+                    "bytes": size,
+                    "outcome": what,
+                }
+            )
+            print(
+                f"{suffix:6s} {float(wall):7.1f} s  +{float(grown):7.0f} MB  "
+                f"{size / 1e6:8.1f} MB  {what[:60]}",
+                flush=True,
+            )
+            out.unlink(missing_ok=True)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--long", type=int, help="frames of a long motion (see the docstring)")
     args = ap.parse_args()
     names = [SIGNS[i % len(SIGNS)] for i in range(10)]
     score = load_score(sentence(names))
     t0 = time.perf_counter()
     r = timeline.realize(score, fps=50)
     realize_s = time.perf_counter() - t0
+    if args.long:
+        rows = long_exports(r.qpos, args.long)
+        (ROOT / "bench" / "results").mkdir(exist_ok=True)
+        (ROOT / "bench" / "results" / "export_long.json").write_text(
+            json.dumps({"frames": args.long, "cpu": _cpu(), "rows": rows}, indent=1)
+        )
+        return
     motion = Motion(r.qpos, r.fps, schedule_tuples(r.schedule), "sentence")
     model = load_model()
     rows = []

@@ -12,7 +12,17 @@ finite rollout that loads back), ``rejected`` (exit 2, one message line), or a f
 ``hang`` (over ``--timeout`` seconds). Then ``--rollouts`` damaged rollout files
 (:func:`rollout_mutants`: arrays deleted, reshaped, retyped, made NaN / infinite; bytes
 truncated or flipped) go through ``azee-mj check --score`` (:func:`check_one`): exit 0 / 1,
-or 2 with one line. Writes bench/results/fuzz.json.
+or 2 with one line.
+
+Then hostile names (:func:`hostile_names`: markup, template placeholders, mathtext,
+bidirectional and control characters, huge) go into ``--pages`` web player pages
+(:func:`page_one`: the names come back as data, the page structure is the template's;
+with Chromium, the page loads, the player runs and shows them, nothing injected runs, no
+element is added; a browser shows control characters in the title as it likes)
+and ``--reports`` reports (:func:`report_one`: exit 0, every name HTML-escaped in the
+page), and ``.azee`` expressions nested 1 to 2,000 deep in parentheses or layout go
+through ``azee-mj compile`` (:func:`depth_one`: exit 0 or 2 with one line, never a
+``RecursionError``). Writes bench/results/fuzz.json.
 """
 
 from __future__ import annotations
@@ -318,6 +328,223 @@ def check_one(mutant, tmp: Path) -> tuple[str, str]:
     return "internal", msg.strip()[:300]
 
 
+#: Pieces of hostile names: markup, template placeholders, mathtext, bidirectional and
+#: control characters, and text a player or a report must show as it is.
+NAME_PIECES = [
+    "<!--",
+    "-->",
+    "<script>",
+    "</script>",
+    "</SCRIPT >",
+    "<script>window.pwned=1</script>",
+    "<img src=x onerror=window.pwned=2>",
+    "]]>",
+    "&amp;",
+    "&#60;",
+    "\\u003c",
+    "@GLB@",
+    "@THREE@",
+    "@INFO@",
+    "@TITLE@",
+    "$",
+    "$$",
+    "\\frac{",
+    "$x_$",
+    "COST_$5_$10",
+    "^",
+    "_",
+    "{",
+    "}",
+    "\u202e",
+    "\u2066",
+    "\u200f",
+    "\u2028",
+    "\x00",
+    "\x1b[2J",
+    "\x07",
+    "\r",
+    "\n",
+    "\t",
+    "\ufeff",
+    "e\u0301",
+    "\U0001f600",
+    "\\",
+    '"',
+    "'",
+    "`${x}`",
+    "ok",
+]
+
+
+def hostile_names(count: int, seed: int = 0) -> list[str]:
+    """``count`` names, each 1 to 6 pieces of :data:`NAME_PIECES` (sometimes one 10,000
+    characters long); never empty, never a '.' (block paths join names with it)."""
+    rng = random.Random(seed)
+    out = []
+    for _ in range(count):
+        name = "".join(rng.choice(NAME_PIECES) for _ in range(rng.randint(1, 6)))
+        if rng.random() < 0.05:
+            name = name * (10_000 // len(name) + 1)
+        out.append(name.replace(".", "_"))
+    return out
+
+
+def page_one(names: list[str], tmp: Path, browser=None) -> tuple[str, str]:
+    """(outcome, detail) of a web player page whose schedule, track names and title are
+    ``names``: ``ok`` when the names come back as data, the page holds the template's
+    four scripts, and (with ``browser``) it loads, runs and shows the names with nothing
+    injected run; else ``broken`` or ``injected``."""
+    import re
+
+    import numpy as np
+
+    from azee_mj.export import Motion, write
+    from azee_mj.model import load_model
+
+    model = load_model()
+    q = np.repeat(model.qpos0[None], 11, axis=0)
+    sched = {"hands": tuple((n, 0.0, 1.0) for n in names)}
+    title = names[0]
+    page = write(tmp / "page.html", Motion(q, 10.0, sched, title), model=model)
+    text = page.read_text()
+    if text.count("<script") != 4 or text.count("</script") != 4:
+        return "injected", "the page's scripts are not the template's four"
+    m = re.search(r'<script type="application/json" id="azee-info">(.*?)</script>', text, re.DOTALL)
+    info = json.loads(m.group(1))
+    if [b for b, _, _ in info["schedule"]["hands"]] != names or info["title"] != title:
+        return "broken", "the names did not come back as data"
+    if browser is None:
+        return "ok", "page text"
+    browser.events.clear()
+    ready = "window.azeePlayer && (azeePlayer.ready || azeePlayer.error)"
+    browser.open(page.resolve().as_uri() + "?t=0.5&paused=1", ready, timeout=60)
+    if browser.evaluate("window.pwned !== undefined"):
+        return "injected", "an injected script ran"
+    if not browser.evaluate("azeePlayer.ready") or browser.errors():
+        return "broken", f"player not ready: {browser.errors()[:1]}"[:300]
+    if browser.evaluate("azeePlayer.activeBlocks()") != "hands   " + ", ".join(names):
+        return "broken", "the blocks shown are not the names"
+    structure = (
+        "[document.scripts.length, document.getElementsByTagName('title').length,"
+        " document.getElementById('title').children.length,"
+        " document.getElementById('blocks').children.length]"
+    )
+    if browser.evaluate(structure) != [4, 1, 0, 0]:
+        return "injected", "the page's elements are not the template's"
+    return "ok", "page in chromium"
+
+
+def report_one(names: list[str], tmp: Path) -> tuple[str, str]:
+    """(outcome, detail) of ``azee-mj report`` on tests/data/good.json with its blocks
+    renamed ``names``: ``ok`` (exit 0, every name HTML-escaped in the page), ``rejected``
+    (exit 2, one line) or ``internal``."""
+    import html
+
+    from azee_mj.cli import main
+
+    data = json.loads((ROOT / "tests" / "data" / "good.json").read_text())
+    kids = data["root"]["children"]
+    for kid, name in zip(kids, names):
+        kid["name"] = name
+    data["root"]["name"] = names[-1]
+    src, out = tmp / "named.json", tmp / "report.html"
+    src.write_text(json.dumps(data))
+    out.unlink(missing_ok=True)
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["report", str(src), "-o", str(out), "--fps", "10"])
+    except BaseException as e:  # noqa: BLE001 - anything escaping main() is a failure
+        return "internal", f"{type(e).__name__}: {e}"[:300]
+    msg = err.getvalue()
+    if code == 2 and msg.startswith("azee-mj: error: ") and msg.count("\n") == 1:
+        return "rejected", msg.strip()[:300]
+    if code != 0:
+        return "internal", msg.strip()[:300]
+    with open(out, encoding="utf-8", newline="") as f:  # as written: "\r" kept
+        text = f.read()
+    used = [k["name"] for k in kids] + [data["root"]["name"]]
+    shown = all(html.escape(n) in text for n in used)
+    return ("ok", "report") if shown else ("broken", "a name is missing from the page")
+
+
+def depth_one(depth: int, layout: bool, tmp: Path) -> tuple[str, str]:
+    """(outcome, detail) of ``azee-mj compile`` on ``:seq`` nested ``depth`` deep in
+    parentheses or layout: ``ok`` (exit 0), ``rejected`` (exit 2, one line) or
+    ``internal``."""
+    from azee_mj.cli import main
+
+    if layout:
+        text = "".join(" " * i + ":seq\n" for i in range(depth)) + " " * depth + ":bien\n"
+    else:
+        text = ":seq(" * depth + ":bien" + ")" * depth
+    src = tmp / "deep.azee"
+    src.write_text(text)
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code = main(["compile", str(src)])
+    except BaseException as e:  # noqa: BLE001 - anything escaping main() is a failure
+        return "internal", f"{type(e).__name__}: {e}"[:300]
+    msg = err.getvalue()
+    if code == 0:
+        return "ok", f"depth {depth}"
+    if code == 2 and msg.startswith("azee-mj: error: ") and msg.count("\n") == 1:
+        return "rejected", msg.strip()[:300]
+    return "internal", msg.strip()[:300]
+
+
+def _browser():
+    """A headless Chromium (tests/headless_chromium.py), or None where there is none."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from headless_chromium import Chromium, find_chromium
+
+    exe = find_chromium()
+    return Chromium(exe, size=(480, 360)) if exe else None
+
+
+def names_round(pages: int, reports: int, seed: int, tmp: Path) -> tuple[Counter, list]:
+    """Hostile names through ``pages`` player pages (in Chromium when there is one),
+    ``reports`` reports and nesting depths 1 to 2,000: outcomes and failures."""
+    outcomes: Counter = Counter()
+    failures = []
+    rng = random.Random(seed)
+    browser = _browser() if pages else None
+    try:
+        runs = [("page", k) for k in range(pages)] + [("report", k) for k in range(reports)]
+        for what, k in runs:
+            names = hostile_names(
+                rng.randint(1, 8), seed * 1000 + k + (500 if what == "report" else 0)
+            )
+            if what == "page":
+                outcome, detail = page_one(names, tmp, browser)
+            else:
+                outcome, detail = report_one(names, tmp)
+            outcomes[f"{what}:{outcome}"] += 1
+            if outcome not in ("ok", "rejected"):
+                failures.append(
+                    {"mutant": f"{what}#{k} {names!r}"[:300], "outcome": outcome, "detail": detail}
+                )
+    finally:
+        if browser is not None:
+            browser.close()
+    for depth in (1, 2, 10, 63, 64, 65, 100, 600, 2000):
+        for layout in (False, True):
+            outcome, detail = depth_one(depth, layout, tmp)
+            outcomes[f"depth:{outcome}"] += 1
+            # shallow nesting compiles; past the limit (64) it is one clean message
+            expected = "ok" if depth <= 10 else "rejected" if depth > 64 else outcome
+            if outcome not in ("ok", "rejected") or outcome != expected:
+                failures.append(
+                    {
+                        "mutant": f"depth {depth} layout={layout}",
+                        "outcome": outcome,
+                        "detail": detail,
+                    }
+                )
+    return outcomes, failures
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--count", type=int, default=1000)
@@ -325,6 +552,8 @@ def main():
     ap.add_argument("--fps", type=float, default=10.0)
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--rollouts", type=int, default=300, help="damaged rollouts for check")
+    ap.add_argument("--pages", type=int, default=100, help="player pages with hostile names")
+    ap.add_argument("--reports", type=int, default=20, help="reports with hostile names")
     args = ap.parse_args()
     sys.setrecursionlimit(1000)  # the default: deep input must not need more
     counts: Counter = Counter()
@@ -344,6 +573,10 @@ def main():
             if outcome != "ok" and outcome != "rejected":
                 failures.append({"mutant": label, "outcome": outcome, "detail": detail})
                 print(f"{label}: {outcome}: {detail}", flush=True)
+        names, bad = names_round(args.pages, args.reports, args.seed, Path(d))
+        for f in bad:
+            print(f"{f['mutant']}: {f['outcome']}: {f['detail']}", flush=True)
+        failures += bad
     wall = time.perf_counter() - t0
     summary = {
         "count": args.count,
@@ -352,6 +585,9 @@ def main():
         "outcomes": dict(counts),
         "rollouts": args.rollouts,
         "check_outcomes": dict(checks),
+        "pages": args.pages,
+        "reports": args.reports,
+        "names_outcomes": dict(names),
         "failures": failures,
         "wall_s": wall,
     }
@@ -360,7 +596,7 @@ def main():
     (res / "fuzz.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(
         f"{args.count} scores and {args.rollouts} rollouts in {wall:.0f} s: {dict(counts)}; "
-        f"check: {dict(checks)}"
+        f"check: {dict(checks)}; names and depths: {dict(names)}"
     )
     return 1 if failures else 0
 

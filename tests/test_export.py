@@ -508,7 +508,6 @@ def test_an_npz_of_another_model_is_refused(model, tmp_path, capsys):
     [
         (".glb", "pygltflib", "glTF"),
         (".html", "pygltflib", "The web player's"),
-        (".bvh", "bvhio", "BVH"),
         (".pose", "pose_format", ".pose"),
     ],
 )

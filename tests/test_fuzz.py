@@ -41,3 +41,13 @@ def test_damaged_rollouts_end_in_a_check_or_one_clean_message(tmp_path):
             failures.append(f"{label}: {outcome}: {detail}")
     assert failures == []
     assert outcomes.get("ok", 0) >= 20 and outcomes.get("rejected", 0) >= 100, outcomes
+
+
+@pytest.mark.fuzz
+def test_hostile_names_in_pages_and_reports_and_deep_nesting(tmp_path):
+    pytest.importorskip("pygltflib", reason="the player needs azee_mj[export]")
+    pytest.importorskip("matplotlib", reason="the report needs azee_mj[plot]")
+    outcomes, failures = fuzz.names_round(20, 3, 27, tmp_path)
+    assert failures == []
+    assert outcomes["page:ok"] == 20 and outcomes["report:ok"] + outcomes["report:rejected"] == 3
+    assert outcomes["depth:ok"] >= 6 and outcomes["depth:rejected"] >= 8, outcomes

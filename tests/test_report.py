@@ -34,6 +34,7 @@ def test_html_report_is_self_contained_and_names_the_blocks(tmp_path, capsys):
 
 def test_png_set(tmp_path):
     d = tmp_path / "figs"
+    d.mkdir()
     assert main(["report", str(GOOD), "-o", f"{d}/"]) == 0
     names = sorted(p.name for p in d.iterdir())
     assert names == ["convergence.png", "ik_problems.png", "residuals.png", "timeline.png"]

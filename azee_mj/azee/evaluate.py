@@ -31,11 +31,13 @@ from azee_mj.azee.errors import ExpressionError
 from azee_mj.azee.lexicon import Lexicon, Sign, fill
 from azee_mj.azee.nonmanual import RuleProblem
 from azee_mj.azee.rules import BY_NAME, RULES
-from azee_mj.azee.syntax import App, Arg, Atom, Node, parse
+from azee_mj.azee.syntax import MAX_NESTING, App, Arg, Atom, Node, parse
 from azee_mj.errors import ScoreError
+from azee_mj.files import read_text
 from azee_mj.score import load_score
 
-MAX_DEPTH = 64
+#: Deepest nesting of rules and signs evaluated (the parser's limit, signs included).
+MAX_DEPTH = MAX_NESTING
 #: Decimals output times are rounded to [s].
 TIME_DECIMALS = 9
 _ATOM_KIND = {"locus": "locus", "atom": "digit", "num": "num", "text": "text"}
@@ -478,7 +480,7 @@ def compile_file(
     """Compile the ``.azee`` file at ``path`` (see :func:`compile_text`)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
     except OSError as e:
         raise ExpressionError(
             f"cannot read the expression: {e.strerror or e}", file=str(path), path=""

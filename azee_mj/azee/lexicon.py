@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from typing import Any
 from azee_mj.azee.catalogue import Param
 from azee_mj.azee.errors import ExpressionError
 from azee_mj.azee.rules import BY_NAME
+from azee_mj.files import read_text
 
 BUNDLED = Path(__file__).parent / "lexicon"
 PARAM_KINDS = ("locus", "num")
@@ -57,9 +59,13 @@ class Lexicon:
         self.dirs = tuple(Path(d) for d in dirs)
         self._files: dict[str, Path] = {}
         for d in (*self.dirs, BUNDLED):
-            if not d.is_dir():
+            if not os.path.isdir(d):
                 raise ExpressionError("not a directory of signs (--lexicon)", file=str(d), path="")
-            for p in sorted(d.iterdir()):
+            try:
+                files = sorted(d.iterdir())
+            except OSError as e:
+                raise _fail(d, f"cannot read the directory: {e.strerror or e}") from None
+            for p in files:
                 if p.suffix not in (".json", ".azee") or p.stem in self._files:
                     continue
                 if p.stem in BY_NAME:
@@ -86,9 +92,11 @@ def read_sign(name: str, path: Path) -> Sign:
     """Read one sign file; its declared parameters are checked, its blocks are checked by
     the score loader when it is used."""
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise _fail(path, f"lexicon :{name}: cannot read the sign: {e}") from None
+        text = read_text(path)
+    except OSError as e:
+        raise _fail(path, f"lexicon :{name}: cannot read the sign: {e.strerror or e}") from None
+    except UnicodeDecodeError as e:
+        raise _fail(path, f"lexicon :{name}: not a UTF-8 text file: {e.reason}") from None
     if path.suffix == ".azee":
         return Sign(name, path, text=text)
     try:

@@ -8,7 +8,8 @@ Grammar (design contract, section 1)::
     arg   := [ "'" ident ] expr
     ident := letter (any script) {letter | digit | "-" | "_"}
 
-``#`` starts a comment. In the **layout form** each line is ``expr``, ``'label`` or
+Parentheses and layout levels nest at most :data:`MAX_NESTING` deep each (a clean error
+beyond, not a ``RecursionError``). ``#`` starts a comment. In the **layout form** each line is ``expr``, ``'label`` or
 ``'label expr``; an application's arguments are the following lines indented deeper than
 it, and a label takes the next expression line, at least as deep as the label. Inside
 parentheses layout is ignored. Positions are 1-based lines and columns (characters).
@@ -70,6 +71,9 @@ class _Tok:
     first: bool  # first token of its physical line
 
 
+#: Deepest nesting of parentheses, and of layout levels, the parser accepts.
+MAX_NESTING = 64
+
 _NUM = re.compile(r"-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
 _SIGILS = {":": "app", "^": "locus", ".": "atom", "'": "label"}
 _WHAT = {
@@ -102,6 +106,9 @@ class _Parser:
 
     def err(self, problem: str, line: int, col: int) -> ExpressionError:
         return ExpressionError(problem, file=self.file, line=line, col=col, path="syntax")
+
+    def too_deep(self, line: int, col: int) -> ExpressionError:
+        return self.err(f"nesting deeper than {MAX_NESTING} levels", line, col)
 
     # -- tokens ---------------------------------------------------------------------------
     def tokens(self) -> list[_Tok]:
@@ -179,6 +186,8 @@ class _Parser:
             out[-1].append(t)
             if t.kind == "(":
                 opened.append(t)
+                if len(opened) > MAX_NESTING:
+                    raise self.too_deep(t.line, t.col)
             elif t.kind == ")":
                 if not opened:
                     raise self.err("unbalanced parentheses: ')' without '('", t.line, t.col)
@@ -273,9 +282,12 @@ class _Parser:
             )
         return node
 
-    def value(self, i: int) -> tuple[Node, int]:
-        """The expression of layout line ``i`` with its layout arguments; next line index."""
-        indent, _, node, _ = self.ls[i]
+    def value(self, i: int, depth: int = 1) -> tuple[Node, int]:
+        """The expression of layout line ``i`` (``depth`` layout levels deep) with its
+        layout arguments; next line index."""
+        indent, _, node, head = self.ls[i]
+        if depth > MAX_NESTING:
+            raise self.too_deep(head.line, head.col)
         end = i + 1
         while end < len(self.ls) and self.ls[end][0] > indent:
             end += 1
@@ -294,10 +306,10 @@ class _Parser:
                 h.line,
                 h.col,
             )
-        args = self.layout_args(i + 1, end)
+        args = self.layout_args(i + 1, end, depth + 1)
         return dataclasses.replace(node, args=tuple(args)), end
 
-    def layout_args(self, i: int, end: int) -> list[Arg]:
+    def layout_args(self, i: int, end: int, depth: int) -> list[Arg]:
         col = self.ls[i][0]
         args: list[Arg] = []
         while i < end:
@@ -317,9 +329,9 @@ class _Parser:
                         head.line,
                         head.col,
                     )
-                value, i = self.value(i + 1)
+                value, i = self.value(i + 1, depth)
             else:
-                value, i = self.value(i)
+                value, i = self.value(i, depth)
             args.append(Arg(label.text if label else None, value, head.line, head.col))
         return args
 

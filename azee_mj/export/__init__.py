@@ -10,7 +10,7 @@ suffix     writer                               library (``pip install azee_mj[e
 =========  ===================================  ==========================================
 ``.glb``   :func:`gltf.write_gltf` (binary)      pygltflib
 ``.gltf``  :func:`gltf.write_gltf` (JSON)        pygltflib
-``.bvh``   :func:`bvh.write_bvh`                 bvhio
+``.bvh``   :func:`bvh.write_bvh`                 (none; bvhio reads it back in the tests)
 ``.pose``  :func:`pose.write_pose`               pose-format
 ``.csv``   :func:`csv.write_csv`                 (none)
 ``.livelink.csv``  :func:`arkit.write_livelink` (none): the face as Live Link Face writes it
@@ -113,6 +113,10 @@ def write(
         model = load_model()
     mo.check_qpos(model, motion.qpos, motion.fps, where=motion.name or "qpos")
     writer = _writer(fmt)  # imports the extra before any file is made
+    if fmt == "html":
+        from azee_mj.export.player import check_frames
+
+        check_frames(output, len(motion.qpos))
     with atomic_path(output, inputs=inputs) as tmp:
         writer(tmp, model, motion, signer_map)
     return output
@@ -137,8 +141,6 @@ def _writer(fmt: str):
 
     if fmt in ("glb", "gltf", "html"):
         mo.require("pygltflib", "glTF" if fmt != "html" else "The web player's")
-    if fmt == "bvh":
-        mo.require("bvhio", "BVH")
     if fmt == "pose":
         mo.require("pose_format", ".pose")
     if fmt in ("glb", "gltf"):

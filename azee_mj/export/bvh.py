@@ -2,21 +2,29 @@
 
 - Joints are the model's bodies below the world, each named as the AZee bone it carries
   (``palm_R``), or as the body where no bone maps to it (``pelvis``, ``jaw``, ``lid_L``...).
+  A name is made of letters, digits, ``_``, ``.`` and ``-`` only (any other character,
+  such as a space or a brace that the BVH grammar would read as a token, becomes ``_``)
+  and is unique (``_2``, ``_3``... appended).
 - Axes are Y-up (x to the signer's left, y up, z the signer's facing), units metres.
   Offsets are the bodies' positions in their parents at the model's rest (``body_pos``).
 - Every joint has three rotation channels; the root and the bodies that slide (the face
   articulators) also have three position channels (the offset plus the slide).
   Each joint's Euler order is the one of the six whose middle angle stays farthest from
   +-90 degrees over the motion (no gimbal lock in the written angles).
-- ``Frame Time`` is ``1 / fps``; one frame per rollout frame.
+- ``Frame Time`` is ``1 / fps``; one frame per rollout frame. Numbers have 10 significant
+  digits.
 
-Written and read with ``bvhio`` (``pip install azee_mj[export]``).
+Written a chunk of frames at a time (bounded memory for any length: a first pass picks
+the Euler orders, a second writes the frames); read with ``bvhio``
+(``pip install azee_mj[export]``), which the tests use.
 """
 
 from __future__ import annotations
 
 import itertools
 import os
+import re
+import warnings
 from collections.abc import Mapping
 
 import mujoco
@@ -25,8 +33,8 @@ import numpy as np
 from azee_mj.export import motion as mo
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 
-#: Decimals written (bvhio rounds each number): 1e-9 m and 1e-9 degrees.
-PRECISION = 9
+#: Significant digits written.
+DIGITS = 10
 #: Length of the end site of a leaf joint that has no tip site [m].
 END_LENGTH = 0.02
 
@@ -34,9 +42,23 @@ _AXES = "XYZ"
 
 
 def joint_names(model: mujoco.MjModel, signer_map: SignerMap = DEFAULT_MAP) -> list[str]:
-    """Per body id, the BVH joint name: its AZee bone, else the body's name."""
+    """Per body id, the BVH joint name: its AZee bone, else the body's name, made a token
+    of the BVH grammar and unique (see the module docstring)."""
     bone_of = {b.body: bone for bone, b in signer_map.bones.items()}
-    return [bone_of.get(n, n) for n in mo.body_names(model)]
+    out: list[str] = []
+    taken = {"world"}  # the still root joint's name when several bodies hang from the world
+    for b, n in enumerate(mo.body_names(model)):
+        name = _NOT_NAME.sub("_", bone_of.get(n, n) or f"body{b}")
+        base, k = name, 1
+        while name in taken and b > 0:
+            k += 1
+            name = f"{base}_{k}"
+        taken.add(name)
+        out.append(name)
+    return out
+
+
+_NOT_NAME = re.compile(r"[^A-Za-z0-9_.\-]")
 
 
 def _quat_mats(q: np.ndarray) -> np.ndarray:
@@ -51,75 +73,100 @@ def _quat_mats(q: np.ndarray) -> np.ndarray:
     )
 
 
+_ORDERS = ("ZXY", *("".join(p) for p in itertools.permutations(_AXES)))
+
+
+def _worst_middle(R: np.ndarray) -> dict[str, np.ndarray]:
+    """Per Euler order, the largest ``|sin(middle angle)|`` over rotation matrices
+    ``R`` (T, ..., 3, 3) (``R[a, c]`` for R = R_a R_b R_c), per trailing index."""
+    return {
+        o: np.abs(R[..., _AXES.index(o[0]), _AXES.index(o[2])]).max(axis=0, initial=0.0)
+        for o in _ORDERS
+    }
+
+
+def _pick(worst: dict[str, float]) -> str:
+    """The order whose middle angle stays farthest from +-90 degrees (ZXY on ties)."""
+    best, order = np.inf, "ZXY"
+    for o in _ORDERS:
+        if worst[o] < best - 1e-9:
+            best, order = float(worst[o]), o
+    return order
+
+
 def euler_order(quats: np.ndarray) -> str:
     """The intrinsic Euler order (e.g. ``"ZXY"``) whose middle angle keeps farthest from
     +-90 degrees for rotations ``quats`` (T, 4) ``wxyz``: for R = R_a R_b R_c the middle
     angle's sine is +-R[a, c]."""
-    R = _quat_mats(np.asarray(quats, float))
-    best, order = np.inf, "ZXY"
-    for perm in ["ZXY", *("".join(p) for p in itertools.permutations(_AXES))]:
-        a, c = _AXES.index(perm[0]), _AXES.index(perm[2])
-        worst = float(np.max(np.abs(R[:, a, c]))) if len(R) else 0.0
-        if worst < best - 1e-9:
-            best, order = worst, perm
-    return order
+    return _pick(_worst_middle(_quat_mats(np.asarray(quats, float))))
 
 
-def build_bvh(
-    model: mujoco.MjModel, qpos: np.ndarray, fps: float, *, signer_map: SignerMap = DEFAULT_MAP
-):
-    """The motion as a ``bvhio.BvhContainer`` (see the module docstring)."""
-    bvhio = mo.require("bvhio", "BVH")
-    glm = mo.require("glm", "BVH")  # PyGLM, which bvhio uses
-    st = mo.require("SpatialTransform", "BVH")
-    mo.check_qpos(model, qpos, fps)
-    qpos = np.asarray(qpos, float)
-    names = joint_names(model, signer_map)
-    _, slide = mo.moving_bodies(model)
+def _local_yup(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each body's position (T, nbody, 3) [m] and rotation (T, nbody, 4) ``wxyz`` in its
+    parent's frame, in the Y-up frame."""
     pos, quat = mo.body_frames(model, qpos)
     lpos, lquat = mo.local_frames(model, pos, quat)
-    lpos_y = lpos @ mo.YUP.T
-    lquat_y = mo.quat_to_yup(lquat)
-    tips = _tip_offsets(model, signer_map)
+    return lpos @ mo.YUP.T, mo.quat_to_yup(lquat)
 
-    children: dict[int, list[int]] = {}
-    for b in range(1, model.nbody):
-        children.setdefault(int(model.body_parentid[b]), []).append(b)
-    roots = children.get(0, [])
 
-    def joint(b: int, is_root: bool):
-        j = bvhio.BvhJoint(names[b])
-        j.Offset = glm.dvec3(*(mo.YUP @ model.body_pos[b]))  # dvec3: written as given
-        order = euler_order(lquat_y[:, b])
-        if is_root or slide[b]:
-            j.Channels = ["Xposition", "Yposition", "Zposition"]
-        j.Channels += [f"{a}rotation" for a in order]
-        j.Keyframes = [
-            st.Pose(glm.vec3(*lpos_y[k, b]), glm.quat(*lquat_y[k, b])) for k in range(len(qpos))
-        ]
-        for c in children.get(b, []):
-            j.Children.append(joint(c, False))
-        if not j.Children:
-            j.EndSite = glm.dvec3(*tips.get(b, _default_tip(model, b, signer_map)))
-        return j
+def _orders(model: mujoco.MjModel, qpos: np.ndarray) -> list[str]:
+    """Per body, its Euler order over the whole motion (a pass over chunks of frames)."""
+    worst = {o: np.zeros(model.nbody) for o in _ORDERS}
+    for k0 in mo.chunks(len(qpos)):
+        _, lquat = _local_yup(model, qpos[k0 : k0 + mo.CHUNK])
+        for o, w in _worst_middle(_quat_mats(lquat)).items():
+            np.maximum(worst[o], w, out=worst[o])
+    return [_pick({o: float(worst[o][b]) for o in _ORDERS}) for b in range(model.nbody)]
 
-    if len(roots) == 1:
-        root = joint(roots[0], True)
-    else:  # several bodies hang from the world: a still root joint holds them
-        root = bvhio.BvhJoint("world", glm.vec3(0, 0, 0))
-        root.Channels = [
-            "Xposition",
-            "Yposition",
-            "Zposition",
-            "Zrotation",
-            "Xrotation",
-            "Yrotation",
-        ]
-        root.Keyframes = [
-            st.Pose(glm.vec3(0, 0, 0), glm.quat(1, 0, 0, 0)) for _ in range(len(qpos))
-        ]
-        root.Children = [joint(c, False) for c in roots]
-    return bvhio.BvhContainer(root, len(qpos), 1.0 / fps)
+
+def _joint_lines(model, b, depth, ctx) -> None:
+    """Append body ``b``'s joint (and its children's) to ``ctx["lines"]``, and its
+    channels to ``ctx["columns"]``: ``(body, moves)`` in channel order."""
+    names, orders, slide, tips, children, smap = ctx["info"]
+    pad = "  " * depth
+    is_root = depth == 0
+    lines = ctx["lines"]
+    off = mo.YUP @ model.body_pos[b]
+    lines.append(f"{pad}{'ROOT' if is_root else 'JOINT'} {names[b]}")
+    lines.append(f"{pad}{{")
+    lines.append(f"{pad}  OFFSET {_numbers(off)}")
+    moves = is_root or bool(slide[b])
+    channels = ["Xposition", "Yposition", "Zposition"] if moves else []
+    channels += [f"{a}rotation" for a in orders[b]]
+    lines.append(f"{pad}  CHANNELS {len(channels)} {' '.join(channels)}")
+    ctx["columns"].append((b, moves))
+    kids = children.get(b, [])
+    for c in kids:
+        _joint_lines(model, c, depth + 1, ctx)
+    if not kids:
+        tip = tips.get(b, _default_tip(model, b, smap))
+        lines += [f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {_numbers(tip)}"]
+        lines.append(f"{pad}  }}")
+    lines.append(f"{pad}}}")
+
+
+def _numbers(v) -> str:
+    return mo.float_rows(np.asarray(v, float)[None], DIGITS, " ", "")
+
+
+def _frame_values(model, qpos, columns, orders) -> np.ndarray:
+    """The motion lines' numbers (T, channels) of frames ``qpos``: per joint, its local
+    position (if it moves) then its Euler angles [degrees] in its order."""
+    from scipy.spatial.transform import Rotation
+
+    lpos, lquat = _local_yup(model, qpos)
+    parts = []
+    for b, moves in columns:
+        if b < 0:  # the still world root
+            parts.append(np.zeros((len(qpos), 6)))
+            continue
+        if moves:
+            parts.append(lpos[:, b])
+        with warnings.catch_warnings():  # a middle angle at 90 degrees: still exact
+            warnings.simplefilter("ignore")
+            rot = Rotation.from_quat(lquat[:, b][:, [1, 2, 3, 0]])
+            parts.append(rot.as_euler(orders[b], degrees=True))
+    return np.concatenate(parts, axis=1)
 
 
 def _tip_offsets(model: mujoco.MjModel, signer_map: SignerMap) -> Mapping[int, np.ndarray]:
@@ -150,6 +197,34 @@ def write_bvh(
     *,
     signer_map: SignerMap = DEFAULT_MAP,
 ) -> None:
-    """Write the motion to ``path`` as BVH (the caller makes it atomic)."""
-    bvhio = mo.require("bvhio", "BVH")
-    bvhio.writeBvh(str(path), build_bvh(model, qpos, fps, signer_map=signer_map), PRECISION)
+    """Write the motion to ``path`` as BVH (the caller makes it atomic), a chunk of frames
+    at a time (see the module docstring)."""
+    mo.check_qpos(model, qpos, fps)
+    qpos = np.asarray(qpos)
+    _, slide = mo.moving_bodies(model)
+    children: dict[int, list[int]] = {}
+    for b in range(1, model.nbody):
+        children.setdefault(int(model.body_parentid[b]), []).append(b)
+    orders = _orders(model, qpos)
+    info = (joint_names(model, signer_map), orders, slide, _tip_offsets(model, signer_map))
+    ctx = {"info": (*info, children, signer_map), "lines": ["HIERARCHY"], "columns": []}
+    roots = children.get(0, [])
+    if len(roots) == 1:
+        _joint_lines(model, roots[0], 0, ctx)
+    else:  # several bodies hang from the world: a still root joint holds them
+        ctx["lines"] += [
+            "ROOT world",
+            "{",
+            "  OFFSET 0.0 0.0 0.0",
+            "  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
+        ]
+        ctx["columns"].append((-1, True))
+        for c in roots:
+            _joint_lines(model, c, 1, ctx)
+        ctx["lines"].append("}")
+    ctx["lines"] += ["MOTION", f"Frames: {len(qpos)}", f"Frame Time: {1.0 / fps!r}", ""]
+    with open(path, "w", encoding="ascii") as f:
+        f.write("\n".join(ctx["lines"]))
+        for k0 in mo.chunks(len(qpos)):
+            q = np.asarray(qpos[k0 : k0 + mo.CHUNK], float)
+            f.write(mo.float_rows(_frame_values(model, q, ctx["columns"], orders), DIGITS, " "))

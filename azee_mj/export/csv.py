@@ -3,9 +3,11 @@ weights, for spreadsheets and R.
 
 Columns: ``time`` [s], then ``SITE_x``, ``SITE_y``, ``SITE_z`` [m] in the signer frame
 (x forward, y left, z up) for every AZee site of the map, then the signing-space loci, in
-the catalogue's order, then the 52 ARKit blend-shape weights in [0, 1] named as ARKit
-names them (``eyeBlinkLeft`` ...; :mod:`azee_mj.export.arkit` reads them from the rig).
-Numbers are written with 9 significant digits. Needs no extra.
+the catalogue's order (``docs/exports.md`` has the legend of the AZee names), then the 52
+ARKit blend-shape weights in [0, 1] named as ARKit names them (``eyeBlinkLeft`` ...;
+:mod:`azee_mj.export.arkit` reads them from the rig). Numbers are written with 9
+significant digits, always as floats (``0.0``, never ``0``), a chunk of frames at a time
+(bounded memory for any length). Needs no extra.
 """
 
 from __future__ import annotations
@@ -39,17 +41,13 @@ def write_csv(
     mo.check_qpos(model, qpos, fps)
     names = columns(signer_map)
     model_sites = [{**signer_map.sites, **signer_map.loci}[n] for n in names]
-    pos = mo.site_positions(model, np.asarray(qpos, float), model_sites)
-    shapes = face.weights(model, qpos, signer_map)
-    t = np.arange(len(qpos)) / fps
+    header = ["time", *(f"{n}_{a}" for n in names for a in "xyz"), *arkit.ARKIT_SHAPES]
     with open(path, "w", newline="") as f:
-        w = _csv.writer(f)
-        w.writerow(["time", *(f"{n}_{a}" for n in names for a in "xyz"), *arkit.ARKIT_SHAPES])
-        for k in range(len(qpos)):
-            w.writerow(
-                [
-                    f"{t[k]:.9g}",
-                    *(f"{v:.9g}" for v in pos[k].reshape(-1)),
-                    *(f"{v:.9g}" for v in shapes[k]),
-                ]
-            )
+        _csv.writer(f).writerow(header)
+        for k0 in mo.chunks(len(qpos)):
+            q = np.asarray(qpos[k0 : k0 + mo.CHUNK], float)
+            pos = mo.site_positions(model, q, model_sites).reshape(len(q), -1)
+            shapes = face.weights(model, q, signer_map)
+            t = np.arange(k0, k0 + len(q)) / fps
+            rows = np.column_stack([t, pos, shapes])
+            f.write(mo.float_rows(rows, 9, ",", "\r\n", always_float=True))

@@ -17,6 +17,9 @@ from azee_mj.errors import AzeeError
 
 #: How to install the libraries the exporters use.
 EXPORT_HINT = "pip install azee_mj[export]"
+#: Frames computed and written at a time by the streaming writers (BVH, CSV, .pose): their
+#: memory stays bounded whatever the motion's length.
+CHUNK = 512
 
 #: Signer frame (x forward, y left, z up) -> Y-up frame (x to the signer's left, y up, z
 #: forward), as glTF and BVH expect: a proper rotation (a cyclic permutation of the axes).
@@ -86,6 +89,37 @@ def check_qpos(model: mujoco.MjModel, qpos: np.ndarray, fps: float, where: str =
         raise AzeeError(f"{where}: holds non-finite values")
     if not (np.isfinite(fps) and fps > 0):
         raise AzeeError(f"fps must be positive, got {fps}")
+
+
+def chunks(frames: int, size: int = CHUNK) -> range:
+    """The first frame of each chunk of ``size`` frames covering ``frames`` frames."""
+    return range(0, frames, size)
+
+
+def float_rows(
+    values: np.ndarray, digits: int, sep: str, end: str = "\n", always_float: bool = False
+) -> str:
+    """Rows of ``values`` (N, M) as text lines ending in ``end``, numbers separated by
+    ``sep``, each with ``digits`` significant digits; ``always_float``: a whole number is
+    written ``12.0``, never ``12``, so that a reader infers a float column."""
+    n, m = values.shape
+    if n == 0:
+        return ""
+    g = f"%.{digits}g"
+    whole = np.zeros(values.shape, bool)
+    if always_float:  # would print without a point: a whole number at ``digits`` digits
+        size = np.abs(values)
+        with np.errstate(divide="ignore"):
+            step = 10.0 ** (
+                np.floor(np.log10(np.maximum(size, np.finfo(float).smallest_subnormal)))
+                - digits
+                + 1
+            )
+        whole = (np.abs(values - np.round(values)) <= step / 2) & (size < 10.0**digits)
+    if not whole.any():
+        return ((sep.join([g] * m) + end) * n) % tuple(values.ravel().tolist())
+    cells = np.where(whole, "%.1f", g).tolist()
+    return (end.join(sep.join(row) for row in cells) + end) % tuple(values.ravel().tolist())
 
 
 def body_frames(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,9 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -30,6 +32,9 @@ from azee_mj.export import gltf
 from azee_mj.export import motion as mo
 
 VENDOR = Path(__file__).parent / "vendor"
+#: Most frames a page may hold: 30 minutes at 50 fps, a page of about 100 MB that headless
+#: Chromium opened in 17 s; one of 180,001 frames (196 MB) did not open in 10 minutes.
+MAX_PLAYER_FRAMES = 90_000
 #: The scene camera the page starts from, and how far ahead of it the orbit centre is [m].
 CAMERA = "front"
 ORBIT_DISTANCE = 2.0
@@ -67,6 +72,7 @@ def build_html(
 ) -> str:
     """The page's text (see the module docstring). ``schedule``: per track, ``(block, start,
     end)`` intervals [s] whose block names the page shows at the current time."""
+    check_schedule(schedule or {})
     glb = gltf.glb_bytes(model, qpos, fps)
     three = (VENDOR / "three.min.js").read_text(encoding="utf-8")
     info = {
@@ -79,15 +85,43 @@ def build_html(
             k: [[b, float(s), float(e)] for b, s, e in v] for k, v in (schedule or {}).items()
         },
     }
-    page = _TEMPLATE
-    for key, value in (
-        ("@TITLE@", html.escape(title)),
-        ("@INFO@", json.dumps(info).replace("</", "<\\/")),
-        ("@GLB@", base64.b64encode(glb).decode("ascii")),
-        ("@THREE@", three),
-    ):
-        page = page.replace(key, value, -1 if key == "@TITLE@" else 1)
-    return page
+    values = {
+        "TITLE": html.escape(title),
+        "INFO": script_json(info),
+        "GLB": base64.b64encode(glb).decode("ascii"),
+        "THREE": three,
+    }
+    # one pass over the template alone: no user string is ever scanned for placeholders
+    return _PLACEHOLDER.sub(lambda m: values[m.group(1)], _TEMPLATE)
+
+
+_PLACEHOLDER = re.compile("@(TITLE|INFO|GLB|THREE)@")
+
+
+def script_json(value) -> str:
+    """``value`` as JSON text safe inside a ``<script>`` element: ``<``, ``>`` and ``&``
+    written as ``\\u003c``, ``\\u003e``, ``\\u0026`` (so no ``<!--``, ``<script`` or
+    ``</script`` can end or change the element); non-finite numbers refused."""
+    text = json.dumps(value, allow_nan=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def check_frames(output: str | os.PathLike, frames: int) -> None:
+    """Refuse a page of more than :data:`MAX_PLAYER_FRAMES` frames (it would not open)."""
+    if frames > MAX_PLAYER_FRAMES:
+        raise mo.AzeeError(
+            f"{output}: {frames} frames; a player page holds at most {MAX_PLAYER_FRAMES} "
+            "(a larger page takes minutes to open in a browser, or never opens): export a "
+            "part, a lower --fps, or .glb for a viewer"
+        )
+
+
+def check_schedule(schedule: Mapping[str, tuple[tuple[str, float, float], ...]]) -> None:
+    """Raise :class:`~azee_mj.errors.AzeeError` for a block time that is not finite."""
+    for track, ivs in schedule.items():
+        for b, s, e in ivs:
+            if not (math.isfinite(s) and math.isfinite(e)):
+                raise mo.AzeeError(f"schedule: block {b!r} on track {track}: times must be finite")
 
 
 def write_player(
@@ -100,6 +134,7 @@ def write_player(
 ) -> None:
     """Write the page to ``path`` (the caller makes it atomic)."""
     mo.check_qpos(model, qpos, fps)
+    check_frames(path, len(qpos))
     Path(path).write_text(build_html(model, qpos, fps, schedule, title), encoding="utf-8")
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import struct
 
 import mujoco
 import numpy as np
@@ -423,17 +424,12 @@ def _hand_colors() -> list[tuple[int, int, int]]:
     ]
 
 
-def build_pose(
-    model: mujoco.MjModel, qpos: np.ndarray, fps: float, *, signer_map: SignerMap = DEFAULT_MAP
-):
-    """The keypoints as a ``pose_format.Pose`` (see the module docstring)."""
-    pf = mo.require("pose_format", ".pose")
-    mo.require("pose_format.numpy", ".pose")
-    from pose_format.numpy.pose_body import NumPyPoseBody
+def pose_header():
+    """The file's ``pose_format.PoseHeader``: the four components with their points,
+    limbs and colours, a ``WIDTH`` x ``HEIGHT`` image."""
+    mo.require("pose_format", ".pose")
     from pose_format.pose_header import PoseHeader, PoseHeaderComponent, PoseHeaderDimensions
 
-    mo.check_qpos(model, qpos, fps)
-    pts = keypoints(model, np.asarray(qpos, float), signer_map)
     limbs = {
         "POSE_LANDMARKS": list(POSE_LIMBS),
         "FACE_LANDMARKS": _face_limbs(),
@@ -452,13 +448,30 @@ def build_pose(
         )
         for c in POINTS
     ]
-    header = PoseHeader(
+    return PoseHeader(
         version=0.2, dimensions=PoseHeaderDimensions(WIDTH, HEIGHT, 0), components=components
     )
-    data = np.concatenate([signer_to_pose(pts[c]) for c in POINTS], axis=1)
-    data = data[:, None].astype(np.float32)  # (frames, people, points, dims)
+
+
+def _points(model, qpos: np.ndarray, signer_map: SignerMap) -> np.ndarray:
+    """The keypoints of every component in file order, (T, points, 3) float32 [px]."""
+    pts = keypoints(model, np.asarray(qpos, float), signer_map)
+    return np.concatenate([signer_to_pose(pts[c]) for c in POINTS], axis=1).astype(np.float32)
+
+
+def build_pose(
+    model: mujoco.MjModel, qpos: np.ndarray, fps: float, *, signer_map: SignerMap = DEFAULT_MAP
+):
+    """The keypoints as a ``pose_format.Pose`` in memory (see the module docstring;
+    :func:`write_pose` writes the same bytes a chunk of frames at a time)."""
+    pf = mo.require("pose_format", ".pose")
+    mo.require("pose_format.numpy", ".pose")
+    from pose_format.numpy.pose_body import NumPyPoseBody
+
+    mo.check_qpos(model, qpos, fps)
+    data = _points(model, qpos, signer_map)[:, None]  # (frames, people, points, dims)
     conf = np.ones(data.shape[:3], np.float32)
-    return pf.Pose(header, NumPyPoseBody(fps=float(fps), data=data, confidence=conf))
+    return pf.Pose(pose_header(), NumPyPoseBody(fps=float(fps), data=data, confidence=conf))
 
 
 def write_pose(
@@ -469,7 +482,18 @@ def write_pose(
     *,
     signer_map: SignerMap = DEFAULT_MAP,
 ) -> None:
-    """Write the keypoints to ``path`` as ``.pose`` (the caller makes it atomic)."""
-    pose = build_pose(model, qpos, fps, signer_map=signer_map)
+    """Write the keypoints to ``path`` as ``.pose`` (the caller makes it atomic), a chunk
+    of frames at a time: the header, ``fps`` (float32), frames (uint32) and people
+    (uint16), the points (frames, 1, points, 3) float32, then their confidences (all 1)."""
+    mo.check_qpos(model, qpos, fps)
+    header = pose_header()
+    n = sum(len(POINTS[c][0]) for c in POINTS)
+    T = len(qpos)
     with open(path, "wb") as f:
-        pose.write(f)
+        header.write(f)
+        f.write(struct.pack("<f", float(fps)) + struct.pack("<I", T) + struct.pack("<H", 1))
+        f.writelines(
+            _points(model, qpos[k0 : k0 + mo.CHUNK], signer_map).tobytes() for k0 in mo.chunks(T)
+        )
+        ones = np.ones(min(T, mo.CHUNK) * n, np.float32).tobytes()
+        f.writelines(ones[: min(mo.CHUNK, T - k0) * n * 4] for k0 in mo.chunks(T))

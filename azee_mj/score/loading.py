@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from azee_mj.errors import ScoreError, shorten
+from azee_mj.files import read_text
 from azee_mj.score.constraint_reader import ConstraintReader
 from azee_mj.score.records import (
     FORMAT,
@@ -63,7 +64,7 @@ def load_score(
 
 def _read_json(path: Path) -> Any:
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
     except OSError as e:
         raise ScoreError(f"{path}: cannot read the score: {e.strerror or e}") from None
     except UnicodeDecodeError as e:

@@ -363,19 +363,28 @@ def test_a_local_dask_cluster_of_two_workers_writes_what_one_process_writes(tmp_
         _same(a.job.output, b.job.output)
 
 
-def test_the_command_runs_on_a_local_dask_cluster(tmp_path, capsys):
-    pytest.importorskip("distributed", reason="the cluster extra is not installed")
-    out = tmp_path / "out"
-    out.mkdir()
+def test_the_command_runs_on_a_dask_cluster_here_or_at_an_address(tmp_path, capsys):
+    distributed = pytest.importorskip("distributed", reason="the cluster extra is not installed")
     bad = _bad(tmp_path / "bad.json")
-    argv = [GOOD, DATA / "kinds.json", bad, "-o", out, "--fps", "25", "--jobs", "2"]
-    assert main(["realize", *map(str, argv), "--scheduler", "local"]) == 1
-    captured = capsys.readouterr()
-    assert captured.err.endswith(f"azee-mj: failed: {bad}\n")
-    assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
     single = tmp_path / "good.npz"
     assert main(["realize", str(GOOD), "-o", str(single), "--fps", "25"]) == 0
-    _same(single, out / "good.npz")
+    scheduler_file = tmp_path / "scheduler.json"
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        dashboard_address=None,
+        scheduler_kwargs={"scheduler_file": str(scheduler_file)},
+    ) as cluster:
+        for k, where in enumerate(["local", cluster.scheduler_address, str(scheduler_file)]):
+            out = tmp_path / f"out{k}"
+            out.mkdir()
+            argv = [GOOD, DATA / "kinds.json", bad, "-o", out, "--fps", "25", "--jobs", "2"]
+            assert main(["realize", *map(str, argv), "--scheduler", where]) == 1
+            captured = capsys.readouterr()
+            assert captured.err.endswith(f"azee-mj: failed: {bad}\n"), where
+            assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
+            _same(single, out / "good.npz")
+        assert len(cluster.scheduler_info["workers"]) == 2  # left running
 
 
 def test_scheduler_mistakes_are_one_clear_line(tmp_path, capsys):

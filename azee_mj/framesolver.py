@@ -18,6 +18,7 @@ from azee_mj import ik
 from azee_mj import score as sc
 from azee_mj.blend import MAX_JOINT_SPEED, Key, goal_key, minjerk, next_still
 from azee_mj.ikadapter import IKAdapter
+from azee_mj.intervals import IntervalIndex
 from azee_mj.kinematics import Const, SitePos
 from azee_mj.routes import path_points
 
@@ -50,33 +51,40 @@ class CurvePreference:
 
 
 def transpath_points(
-    adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray
+    adapter: IKAdapter,
+    b: sc.Block,
+    q: np.ndarray,
+    times: np.ndarray,
+    frames: slice = slice(None),
 ) -> np.ndarray:
-    """(T, 3) path points [m] of transpath block ``b`` at every frame of ``q`` (T, nq)
-    (valid inside its interval): from the site where the frames put it at the block's
-    start to where they put it at its end, along its route, in minimum-jerk time."""
+    """(F, 3) path points [m] of transpath block ``b`` at the frames ``frames`` (default
+    every frame) of ``q`` (T, nq) (valid inside its interval): from the site where the
+    frames put it at the block's start to where they put it at its end, along its route,
+    in minimum-jerk time."""
     sched = adapter.schedule
     site = SitePos(sched.comp.site(b.transpath_site))
     fs = min(int(np.searchsorted(times, b.start - 1e-9)), len(times) - 1)
     fe = min(int(np.searchsorted(times, b.end - 1e-9)), len(times) - 1)
     x0, x1 = (adapter.at(q[f]).value(site) for f in (fs, fe))
-    u = minjerk((times - b.start) / b.duration)
+    u = minjerk((times[frames] - b.start) / b.duration)
     return path_points(b.route, x0, x1, u, adapter.at(q[fs]), sched.smap)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Path:
     """A transpath during pass 2: its block, the model site it moves, the tracks of that
-    site's limb and its points (T, 3) [m]."""
+    site's limb and its points (F, 3) [m] at the frames from ``first`` on that its
+    interval holds (only those: a long score has many transpaths and many frames)."""
 
     block: sc.Block
     site: str
     limbs: frozenset[str]
     points: np.ndarray
+    first: int = 0
 
     def place(self, f: int) -> cn.Place:
-        """The placement of the site on its path point at frame ``f``."""
-        at = Const(tuple(self.points[f]))
+        """The placement of the site on its path point at frame ``f`` (inside the block)."""
+        at = Const(tuple(self.points[f - self.first]))
         return cn.Place(self.site, at, PATH_TOL, f"{self.block.path}@path")
 
 
@@ -84,7 +92,14 @@ def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray)
     """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]."""
     comp = adapter.schedule.comp
     site = comp.site(b.transpath_site)
-    return Path(b, site, frozenset(comp.site_tracks(site)), transpath_points(adapter, b, q, times))
+    inside = slice(*np.searchsorted(times, [b.start, b.end]).tolist())  # start <= t < end
+    points = transpath_points(adapter, b, q, times, inside)
+    return Path(b, site, frozenset(comp.site_tracks(site)), points, inside.start)
+
+
+def key_index(keys: dict[str, list[Key]]) -> dict[str, IntervalIndex]:
+    """Per track, the interval index of its keys' spans."""
+    return {tr: IntervalIndex((k.start, k.end) for k in ks) for tr, ks in keys.items()}
 
 
 class FrameSolver:
@@ -111,11 +126,14 @@ class FrameSolver:
         curve = q.copy()
         still = next_still(moving)
         joints = self.schedule.track_joints
+        # what holds a frame, in logarithmic time: not by asking every path and key
+        paths_at = IntervalIndex((p.block.start, p.block.end) for p in paths)
+        keys_at = key_index(keys)
         for f, t in enumerate(times):
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
-            cons, free = self.held(keys, tracks, t)
-            for p in paths:
-                if p.block.start <= t < p.block.end and p.limbs & tracks:
+            cons, free = self.held(keys, tracks, t, keys_at)
+            for p in (paths[j] for j in paths_at.at(t)):
+                if p.limbs & tracks:
                     cons.append(p.place(f))
                     free |= {j for tr in p.limbs for j in joints[tr]}
             if not cons:
@@ -126,14 +144,16 @@ class FrameSolver:
             q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
         return q
 
-    def held(self, keys, tracks, t: float) -> tuple[list, set[str]]:
+    def held(self, keys, tracks, t: float, keys_at=None) -> tuple[list, set[str]]:
         """The constraints the keys of blending ``tracks`` hold at time ``t`` [s], and the
-        joints they free. While blending, a key's constraints hold to its end, but for the
-        joint targets (hand shapes) the posture the blend heads for does not keep: those
-        joints are the blend's to move."""
+        joints they free (``keys_at``: :func:`key_index` of ``keys``, made if not given).
+        While blending, a key's constraints hold to its end, but for the joint targets
+        (hand shapes) the posture the blend heads for does not keep: those joints are the
+        blend's to move."""
+        keys_at = key_index(keys) if keys_at is None else keys_at
         cons, free = [], set()
         for tr in sorted(tracks):  # sorted: the same rows in any process
-            i = next((i for i, k in enumerate(keys[tr]) if k.start <= t < k.end), None)
+            i = keys_at[tr].first_at(t)
             if i is None:
                 continue
             key, goal = keys[tr][i], goal_key(keys[tr], i, self.schedule.track_dofs[tr])

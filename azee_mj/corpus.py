@@ -290,7 +290,7 @@ class Progress:
             self.done += 1
         else:
             self.failed += 1
-        self.draw(force=self.skipped + self.done + self.failed == self.total)
+        self.draw(force=True)  # (the line printed before it cleared the bar)
 
     def close(self) -> None:
         """Draw the last state and end the line."""

@@ -271,6 +271,28 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
             if badf.size:
                 raise bad(f"{k} is not finite at {badf.size} frame(s), first at frame {badf[0]}")
 
+    schedule = _schedule(a, numeric, text, bad)
+    traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
+    stats = _stats(a, numeric, bad)
+    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
+    if mode_s not in {m.value for m in Mode}:
+        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
+    r = Rollout(
+        fps,
+        Mode(mode_s),
+        time,
+        q,
+        tuple(str(n) for n in names),
+        sp,
+        {k: tuple(v) for k, v in schedule.items()},
+        tuple(traces),
+        stats,
+    )
+    return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
+
+
+def _schedule(a, numeric, text, bad) -> dict[str, list[TrackInterval]]:
+    """The schedule of the rollout arrays ``a`` (empty if it holds none)."""
     schedule: dict[str, list[TrackInterval]] = {}
     if "schedule_track" in a:
         tracks, blocks = text("schedule_track"), text("schedule_block")
@@ -284,7 +306,11 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
             schedule.setdefault(str(track), []).append(
                 TrackInterval(str(track), str(block), float(start), float(end))
             )
-    traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
+    return schedule
+
+
+def _stats(a, numeric, bad) -> SolveStats:
+    """The solve statistics of the rollout arrays ``a`` (zero if it holds none)."""
     st = numeric("stats", 1) if "stats" in a else np.zeros(len(_STATS))
     if (
         len(st) != len(_STATS)
@@ -303,21 +329,7 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         float(st[5]),
         its.astype(np.int64, copy=False) if np.isfinite(its).all() else np.zeros(0, np.int64),
     )
-    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
-    if mode_s not in {m.value for m in Mode}:
-        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
-    r = Rollout(
-        fps,
-        Mode(mode_s),
-        time,
-        q,
-        tuple(str(n) for n in names),
-        sp,
-        {k: tuple(v) for k, v in schedule.items()},
-        tuple(traces),
-        stats,
-    )
-    return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
+    return stats
 
 
 def _traces(a, T, numeric, text, bad) -> list[ConstraintTrace]:

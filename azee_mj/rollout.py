@@ -200,8 +200,10 @@ def site_positions(solver: ik.Solver, smap: SignerMap, q: np.ndarray) -> SitePos
 
 
 def solve_stats(results, key_problems: int, total_time: float) -> SolveStats:
-    """The statistics of IK ``results`` (the first ``key_problems`` of them for key
-    postures), over a realization that took ``total_time`` [s]."""
+    """The statistics of IK ``results`` (anything with ``iterations``, ``converged`` and
+    ``time``: :class:`~azee_mj.ik.IKResult`, :class:`~azee_mj.ikadapter.Solved`; the
+    first ``key_problems`` of them for key postures), over a realization that took
+    ``total_time`` [s]."""
     return SolveStats(
         problems=len(results),
         key_problems=key_problems,

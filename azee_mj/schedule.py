@@ -307,7 +307,6 @@ class Schedule:
         self.by_path = {b.path: b for b in self.blocks}
         self.contacts = self._contact_windows()
         self._contact_index: IntervalIndex | None = None
-        self._allowed: dict[tuple[int, ...], frozenset[tuple[int, int]]] = {}
         self._moved_cache: dict = {}
         self.body_names = [
             mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(self.m.nbody)
@@ -334,13 +333,8 @@ class Schedule:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
         if self._contact_index is None:  # (in logarithmic time: asked at every frame)
             self._contact_index = IntervalIndex((w.start - 1e-9, w.end) for w in self.contacts)
-        held = self._contact_index.at(t)
-        if held not in self._allowed:
-            ws = [self.contacts[i] for i in held]
-            self._allowed[held] = frozenset(
-                p for w in ws for p in ((w.body, w.other), (w.other, w.body))
-            )
-        return self._allowed[held]
+        ws = [self.contacts[i] for i in self._contact_index.at(t)]
+        return frozenset(p for w in ws for p in ((w.body, w.other), (w.other, w.body)))
 
     def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
         """What each constraint of a cstr block drives, in order."""

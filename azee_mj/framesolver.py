@@ -29,6 +29,8 @@ FRAME_RESTARTS = 1
 CURVE_TOL = 0.05
 #: Tolerance of a transpath's path point [m].
 PATH_TOL = 1e-3
+#: Constraint sets whose moved dofs are kept at most (a cache: it would grow with the score).
+NEEDS_CACHE = 256
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -97,6 +99,31 @@ def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray)
     return Path(b, site, frozenset(comp.site_tracks(site)), points, inside.start)
 
 
+class BlendCurve:
+    """The blend's frames ``q`` (T, nq) as they were before the per-frame solves changed
+    them, without a copy of them all (a copy grows with the score): frames are solved in
+    order, so the frames after the current one are still the blend's in ``q``, and the
+    current and previous ones are kept as :meth:`advance` reaches them."""
+
+    def __init__(self, q: np.ndarray):
+        self.q, self.f = q, -1
+        self.current: np.ndarray | None = None
+        self.previous: np.ndarray | None = None
+
+    def advance(self, f: int) -> None:
+        """Frame ``f`` is next to be solved (call before changing ``q[f]``)."""
+        self.previous, self.current, self.f = self.current, self.q[f].copy(), f
+
+    def __getitem__(self, x: int) -> np.ndarray:
+        if x > self.f:
+            return self.q[x]
+        if x == self.f:
+            return self.current
+        if x == self.f - 1 and self.previous is not None:
+            return self.previous
+        raise IndexError(f"frame {x} of the blend is no longer kept (now at frame {self.f})")
+
+
 def key_index(keys: dict[str, list[Key]]) -> dict[str, IntervalIndex]:
     """Per track, the interval index of its keys' spans."""
     return {tr: IntervalIndex((k.start, k.end) for k in ks) for tr, ks in keys.items()}
@@ -123,13 +150,14 @@ class FrameSolver:
         """Frames ``q`` (T, nq) (the blends, solved in place) where the tracks ``names``
         blend (``moving``, (T, tracks)) under the constraints of their ``keys``."""
         paths = self.paths(q, times)
-        curve = q.copy()
+        curve = BlendCurve(q)
         still = next_still(moving)
         joints = self.schedule.track_joints
         # what holds a frame, in logarithmic time: not by asking every path and key
         paths_at = IntervalIndex((p.block.start, p.block.end) for p in paths)
         keys_at = key_index(keys)
         for f, t in enumerate(times):
+            curve.advance(f)
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = self.held(keys, tracks, t, keys_at)
             for p in (paths[j] for j in paths_at.at(t)):
@@ -200,6 +228,8 @@ class FrameSolver:
         ad, step = self.adapter, self.step
         key = tuple(cons)
         if key not in self._needs:
+            if len(self._needs) >= NEEDS_CACHE:  # (a path point is new at every frame)
+                self._needs.clear()
             self._needs[key] = set(ad.solver.free_dofs(ik.IKProblem(key)).tolist())
         needed = self._needs[key]
         moved = sorted(j for j in free if ad.dofs([j])[0] in needed) or sorted(free)

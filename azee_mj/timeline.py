@@ -127,6 +127,7 @@ def realize(
     tick(0.4)
     motion = Motion(adapter, mode, fps)
     q = motion.frames(keys)
+    del keys  # their constraints are not needed past the frames
     tick(0.8)
     times = motion.times()
     own, reasons = sched, poser.reasons

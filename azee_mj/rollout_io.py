@@ -51,8 +51,10 @@ MAX_BYTES = 2 * 1024**3
 _STATS = ("problems", "key_problems", "iterations", "not_converged", "solve_time", "total_time")
 
 
-def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
-    """The arrays of the ``.npz`` file (numeric or fixed-width text), time first."""
+def rollout_arrays(rollout: Rollout, lazy: bool = False) -> dict[str, np.ndarray | Frames]:
+    """The arrays of the ``.npz`` file (numeric or fixed-width text), time first; with
+    ``lazy``, ``site_pos`` as the rollout holds it (a :class:`~azee_mj.frames.Frames`, to
+    be written a block at a time), else as an array."""
     r, tr = rollout, rollout.traces
     ivs = [i for v in r.schedule.values() for i in v]
     s = r.stats
@@ -62,7 +64,7 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
         "fps": np.array(r.fps),
         "mode": np.array(r.mode.value),
         "site_names": np.array(r.site_names),
-        "site_pos": r.site_pos,
+        "site_pos": r.site_pos if lazy else np.asarray(r.site_pos),
         "residual_names": np.array([f"{t.block}#{t.index}" for t in tr], dtype=str),
         "residual_kinds": np.array([t.kind for t in tr], dtype=str),
         "residual_units": np.array([t.unit for t in tr], dtype=str),
@@ -132,7 +134,7 @@ def _dynamic(r: Rollout, numeric, text, bad) -> DynamicRollout:
 
 def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
     """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace)."""
-    arrays = rollout_arrays(rollout)
+    arrays = rollout_arrays(rollout, lazy=True)
     if isinstance(rollout, DynamicRollout):
         arrays |= dynamic_arrays(rollout)
     save_npz(path, arrays, inputs)

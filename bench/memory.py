@@ -31,12 +31,15 @@ SIGNS = ["bien", "pointing", "arbre", "armoire", "info-about", "penser", "nicht-
 
 
 def long_score(duration: float) -> dict:
-    """A score chaining the examples until it lasts at least ``duration`` [s]."""
+    """A score chaining the examples as long as it lasts at most ``duration`` [s] (one hour,
+    the longest score, fits)."""
     children, t, i = [], 0.0, 0
-    while t < duration:
+    while True:
         s = json.loads((ROOT / "examples" / f"{SIGNS[i % len(SIGNS)]}.json").read_text())
         root = s["root"]
         d = root["end"] - root["start"]
+        if t + d > duration:
+            break
         children.append(
             {**root, "name": f"S{i}_{root['name']}", "start": round(t, 6), "end": round(t + d, 6)}
         )
@@ -50,7 +53,7 @@ def long_score(duration: float) -> dict:
             "name": "LONG",
             "kind": "sync",
             "start": 0.0,
-            "end": round(t, 6),
+            "end": round(t - 0.1, 6),
             "children": children,
         },
     }
@@ -117,6 +120,7 @@ def main():
                 ),
                 flush=True,
             )
+    rows.sort(key=lambda r: r["duration_s"])
     long = [r for r in rows if r["duration_s"] >= 300]
     growth = None
     if len(long) >= 2:

@@ -21,10 +21,14 @@ import numpy as np
 BLOCK = 1024
 
 
-class Frames:
+class Frames(np.lib.mixins.NDArrayOperatorsMixin):
     """A read-only (T, ...) array produced a block of frames at a time (subclasses give
     :meth:`_read`); the last block read is kept, so walking frame by frame reads each block
-    once."""
+    once. Arithmetic and NumPy functions work on the whole array (made for them)."""
+
+    def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
+        inputs = tuple(np.asarray(x) if isinstance(x, Frames) else x for x in inputs)
+        return getattr(ufunc, method)(*inputs, **kwargs)
 
     def __init__(self, shape: tuple[int, ...], dtype):
         self.shape, self.dtype = tuple(int(n) for n in shape), np.dtype(dtype)

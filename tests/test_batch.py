@@ -146,7 +146,15 @@ def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path):
         bar.update(Outcome(job, error="a.json: bad"))
         text = bar.text()
         bar.close()
-    shown = os.read(master, 10000).decode()
+    shown = ""
+    while select.select([master], [], [], 0.5)[0]:
+        try:
+            chunk = os.read(master, 10000)
+        except OSError:  # the other end is closed: all read
+            break
+        if not chunk:
+            break
+        shown += chunk.decode()
     os.close(master)
     assert text.startswith("realize [##################......] 3/4 (1 done before), 1 failed, ")
     assert text.endswith(" left") and " scores/s, " in text

@@ -49,6 +49,7 @@ def test_site_positions_are_forward_kinematics_a_block_at_a_time(model):
     assert np.array_equal(lazy[10 : BLOCK + 20], whole[10 : BLOCK + 20])
     assert np.array_equal(lazy[::97, 1], whole[::97, 1])
     assert np.array_equal(lazy[7, 2], whole[7, 2])
+    assert np.array_equal(lazy - 2 * lazy, -whole) and np.abs(lazy).max() == np.abs(whole).max()
     with pytest.raises(IndexError):
         lazy[T]
 

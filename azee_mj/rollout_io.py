@@ -287,12 +287,9 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
     stats = _stats(a, numeric, bad)
     start = _score_start(a, numeric, bad, T, fps)
     findings = _findings(a, numeric, bad) if "finding_text" in a else []
-    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
-    if mode_s not in {m.value for m in Mode}:
-        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
     r = Rollout(
         fps,
-        Mode(mode_s),
+        _mode(a, bad),
         time,
         q,
         tuple(str(n) for n in names),
@@ -304,6 +301,14 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         tuple(findings),
     )
     return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
+
+
+def _mode(a, bad) -> Mode:
+    """The realization mode of the rollout arrays ``a`` (multitrack if they hold none)."""
+    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
+    if mode_s not in {m.value for m in Mode}:
+        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
+    return Mode(mode_s)
 
 
 def _schedule(a, numeric, text, bad) -> dict[str, list[TrackInterval]]:

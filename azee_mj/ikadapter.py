@@ -72,7 +72,7 @@ class IKAdapter:
         contacts of time ``t`` [s] bring together."""
         k = self.solver.at(q)
         allowed = self.schedule.allowed_at(t)
-        return cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT
+        return cn.penetration_depth(k.m, k.d, allowed) > cn.COLLISION_TOL
 
     def dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names (in their order; looked up once per sequence)."""

@@ -36,6 +36,9 @@ from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
 #: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
 LEAN_STEPS = 5
+#: Largest lean [rad] of any spine joint kept for a group the trunk helps but that still
+#: misses (two spine joints: the chest at most about 10 degrees from upright).
+MISS_LEAN = np.deg2rad(5.0)
 #: Tracks that return to neutral when no block needs them.
 RELAXING = ("spine", "head")
 
@@ -243,6 +246,9 @@ class KeyPoser:
         # the holds, and which hold a time (made on first use)
         self._holds: tuple[list[sc.Block], IntervalIndex] | None = None
         self.reasons: dict[str, str] = {}
+        #: id of a missing solve kept upright -> the joints to say why it missed with (the
+        #: trunk's too: it was tried, so what conflicts is told as it is with the trunk)
+        self.diagnose_free: dict[int, tuple[str, ...]] = {}
 
     def take(self, state: np.ndarray, tracks, q: np.ndarray) -> None:
         """Copy the joints of ``tracks`` from posture ``q`` into ``state`` (in place)."""
@@ -320,11 +326,15 @@ class KeyPoser:
         for g in groups:
             solved.append(self.groups.solve(g, items, state, keys, t0))
             self.take(state, g, solved[-1].qpos)
-        if self.mode is Mode.MULTITRACK and any(not s.converged for s in solved):
+        if self.mode is Mode.MULTITRACK and any(
+            not s.converged and not all(t.startswith("hand") for t in g)
+            for g, s in zip(groups, solved)
+        ):  # a hand's fingers missing one another: leaning cannot help them
             groups, solved = self.recruit_trunk(groups, solved, items, before, keys, t0)
         for group, s in zip(groups, solved):
             if not s.converged:
-                self.diagnose(s, before, t0)
+                free = self.diagnose_free.pop(id(s), s.free)
+                self.diagnose(dataclasses.replace(s, free=free), before, t0)
             for t in group:
                 self.take(state, (t,), s.qpos)
                 if keys[t] and keys[t][-1].start == t0:
@@ -384,7 +394,7 @@ class KeyPoser:
         The groups met without it are then solved again on the moved trunk (it carries
         them) rather than riding along: a look turns the head only as far as it needs. If
         that fails, every active track is solved together with the trunk. Returns the
-        (groups, solved) kept: the first that meets everything, else the least violation."""
+        (groups, solved) kept (:meth:`keep_upright_on_miss`)."""
         solve = self.groups.solve
         # a group the score drives the trunk with joins the groups it helps
         failed = [g for g, s in zip(groups, solved) if not s.converged or "spine" in g]
@@ -405,16 +415,31 @@ class KeyPoser:
             group = set().union(*groups) | {"spine"}
             tries.append(([group], [solve(group, items, before, keys, t0, upright=True)]))
 
+        return self.keep_upright_on_miss((groups, solved), tries)
+
+    def keep_upright_on_miss(self, upright, tries):
+        """The first of the trunk-recruited ``tries`` that meets everything; else a miss
+        costs no naturalness: the least violating of the solve the limbs made alone
+        (``upright``) and the tries whose trunk leans at most ``MISS_LEAN`` at every
+        spine joint (the trunk does not bow toward a constraint it cannot meet)."""
+        met = next((c for c in tries if all(s.converged for s in c[1])), None)
+        if met is not None:
+            return met
+        d, home = self.schedule.track_dofs.get("spine"), self.schedule.home
+
+        def upright_enough(cand) -> bool:
+            return all(np.abs(s.qpos[d] - home[d]).max() <= MISS_LEAN for s in cand[1])
+
         def total(cand) -> float:
             return sum(violation(s.result) for s in cand[1])
 
-        best = (groups, solved)
-        for cand in tries:
-            if all(s.converged for s in cand[1]):
-                return cand
-            if total(cand) < total(best):
-                best = cand
-        return best
+        near = [c for c in tries if d is not None and upright_enough(c)]
+        kept = min([upright, *near], key=total)
+        spine = self.schedule.track_joints.get("spine", ())
+        for s in kept[1]:
+            if not s.converged:
+                self.diagnose_free[id(s)] = s.free + tuple(j for j in spine if j not in s.free)
+        return kept
 
     def lean_less(self, solved: GroupSolve, group: set[str], items, keys, t0: float):
         """Bring the trunk of a converged ``solved`` back toward neutral as far as the rest

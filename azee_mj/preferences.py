@@ -48,6 +48,8 @@ FACING_TOL_BODY = 20.0
 #: An elbow held below its shoulder, as a natural preference when the hand is placed
 #: below the eyes: (how far below [m], the height above that costs one unit [m]).
 ELBOW_LOW = (0.02, 0.05)
+#: How far above the highest brow (or eye) site a placed hand still keeps its elbow low [m].
+BROW_MARGIN = 0.005
 #: Rounded parts of the body [deg]: a fingertip meets them from a range of directions
 #: around the site's normal (the shoulder's cap, the forehead's and the temple's curve),
 #: as far as the fingertip's own roundness lets the site meet within its tolerance without
@@ -177,14 +179,15 @@ class Preferences:
 
     def elbows_low(self, cons, free, q: np.ndarray) -> tuple[natural.Below, ...]:
         """A preference, with the naturalness, for each free arm whose hand is placed below
-        the eyes: its elbow no higher than its shoulder (``ELBOW_LOW``). Comfort alone
-        would sometimes fold a raised arm (the upper arm up, the forearm back) rather than
-        bend the wrist; a signer keeps the elbow down unless the hand goes above the eyes."""
-        eyes = [s for a, s in self.smap.sites.items() if a.startswith("EYE_")]
-        if not eyes:
+        the brows (the eyes, the temples, the face below): its elbow no higher than its
+        shoulder (``ELBOW_LOW``). Comfort alone would sometimes fold a raised arm (the
+        upper arm up, the forearm back, or sideways to the horizontal for a temple) rather
+        than bend the wrist; a signer keeps the elbow down unless the hand goes higher."""
+        brows = [s for a, s in self.smap.sites.items() if a.startswith(("EB_", "EYE_"))]
+        if not brows:
             return ()
         k = self.solver.at(q)
-        eye_z = min(k.value(SitePos(s))[2] for s in eyes)
+        brow_z = max(k.value(SitePos(s))[2] for s in brows) + BROW_MARGIN
         out, done = [], set()
         free = set(free)
         for c in cons:
@@ -193,7 +196,7 @@ class Preferences:
             if arm in done or not {arm.flex, arm.abd, arm.rot, arm.elbow} <= free:
                 continue
             done.add(arm)
-            if k.value(c.target)[2] < eye_z:
+            if k.value(c.target)[2] < brow_z:
                 margin, tol = ELBOW_LOW
                 out.append(natural.Below(arm.fore, arm.upper, margin, tol, "elbow low"))
         return tuple(out)

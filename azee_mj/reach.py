@@ -227,7 +227,8 @@ def arm_seeds(
     placement of a site on its hand; when a placement joins the two hands, both hands
     meeting at model site ``meet`` (the neutral signing space), once as the arms bring them (palms facing each
     other) and once stacked, both forearms pronated (palms down: a palm on the back of the
-    other hand), and for a fingertip on the other hand that hand there palm down with the
+    other hand), each of these again with the hands the score orients turned as it asks
+    (:func:`_turned`), and for a fingertip on the other hand that hand there palm down with the
     fingertip reaching it head-on; and when a fingertip must
     meet its target face to face (an ``Orient`` ``OPP`` of the two bodies' normals among
     ``cons``), the arm bringing it in head-on (see :func:`arm_seed`); when a hand touches
@@ -284,7 +285,43 @@ def arm_seeds(
             seeds += _then_reach(solver, held, arm, c, cons, q0)[1:]
     if seeds and carried_by is not None:
         seeds += _across(solver, arms, cons, q0, hand_of, carried_by, seeded)
+    if meeting:  # two hands joined, their palms oriented by the score: turned as asked
+        turned = [_turned(solver, arms, cons, free, q) for q in seeds]
+        seeds += [t for t in turned if t is not None]
+        solver.at(q0, jacobians=True)  # leave ``data`` on ``q0`` for the next group
     return tuple(seeds)
+
+
+#: Forearm rotations tried [fraction of the joint's range] to turn a seeded hand as the
+#: score orients it.
+TURN_SAMPLES = 9
+
+
+def _turned(solver: ik.Solver, arms, cons, free, q: np.ndarray) -> np.ndarray | None:
+    """Seed ``q`` with each arm whose palm the score orients (an ``Orient`` of its hand
+    body among ``cons``: the weak palm turned up under the other hand) turned at the
+    forearm to the rotation that best meets its orientations (the score's and face to
+    face), or None when no arm is turned. Both hands are turned in the one start: a
+    contact whose two sides are oriented starts with both."""
+    m = solver.model
+    out, turned = q.copy(), False
+    for arm in arms:
+        mine = [c for c in cons if isinstance(c, cn.Orient) and c.body == arm.hand]
+        if not any(not c.label.endswith(":facing") for c in mine):
+            continue  # the score orients neither hand: face to face alone seeds as before
+        if not arm.pron or arm.pron not in free:
+            continue
+        j = solver.joint_id(arm.pron)
+        adr = m.jnt_qposadr[j]
+
+        costs = []
+        for v in np.linspace(*m.jnt_range[j], TURN_SAMPLES):
+            out[adr] = v
+            k = solver.at(out)
+            costs.append((sum(float(np.sum(c.rows(k)[0] ** 2)) for c in mine), v))
+        out[adr] = min(costs)[1]
+        turned = True
+    return out if turned else None
 
 
 def _across(

@@ -219,9 +219,29 @@ class Compiler:
             and any(t.startswith("arm") for t in self.site_tracks(s) - own)
         )
 
+    def pinch_track(self, c) -> str | None:
+        """The hand track of a placement joining two digits of one hand (a thumb tip on the
+        index tip), else None: only the fingers can bring them together, the arm cannot."""
+        if not isinstance(c, sc.Place) or not isinstance(c.at, sc.PSite) or c.at.ref.locus:
+            return None
+        sid, tid = (
+            mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_SITE, self.site(r))
+            for r in (c.site, c.at.ref)
+        )
+        a, b = (int(self.m.site_bodyid[i]) for i in (sid, tid))
+        hands = [
+            {t for t in self.body_tracks(x, own_only=False) if t.startswith("hand")} for x in (a, b)
+        ]
+        if a == b or len(hands[0]) != 1 or hands[0] != hands[1]:
+            return None
+        return next(iter(hands[0]))
+
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
         if isinstance(c, sc.Place):
+            pinch = self.pinch_track(c)
+            if pinch is not None:
+                return {pinch}
             out = self.site_tracks(self.site(c.site))
             for s in self.partner_sites(c):  # both parts move
                 out |= self.site_tracks(s)

@@ -28,7 +28,21 @@ DIGITS = {"T": "thumb", "I": "index", "M": "middle", "R": "ring", "L": "little"}
 FINGERS = ("index", "middle", "ring", "little")
 
 #: Sites on the midline: the AZee name is the stem itself.
-MIDLINE_STEMS = ("HEAD", "FH", "NO", "NSP", "MO", "TO", "CH", "BEB", "NK", "ST", "AB", "ABST")
+MIDLINE_STEMS = (
+    "HEAD",
+    "FH",
+    "NO",
+    "NSP",
+    "MO",
+    "TO",
+    "CH",
+    "BEB",
+    "NK",
+    "NAPE",
+    "ST",
+    "AB",
+    "ABST",
+)
 #: Lateral stems: the AZee name is ``STEM_L`` / ``STEM_R``.
 LATERAL_STEMS = (
     "EB",
@@ -45,6 +59,7 @@ LATERAL_STEMS = (
     "ST",
     "AB",
     "ABST",
+    "HIP",
     "SH",
     "ARMpit",
     "ARM",
@@ -557,6 +572,7 @@ _NORMALS = {
     "CH": (0.5914, 0.0, -0.8063),
     "BEB": (-1.0, 0.0, 0.0),
     "NK": (0.9997, 0.0, 0.0235),
+    "NAPE": (-0.9997, 0.0, -0.0235),
     "ST": (0.9957, 0.0, 0.0925),
     "AB": (0.9974, 0.0, 0.0719),
     "ABST": (0.893, 0.0, 0.45),
@@ -574,6 +590,7 @@ _NORMALS = {
     "ST_{X}": (0.8902, -0.4448, 0.0986),
     "AB_{X}": (0.8858, -0.4576, 0.0772),
     "ABST_{X}": (0.8019, -0.3554, 0.4803),
+    "HIP_{X}": (0.3208, -0.7629, 0.5614),
     "SH_{X}": (0.9085, -0.0696, 0.412),
     "ARMpit_{X}": (0.0, 1.0, 0.0),
     "ARM_{X}": (0.0, -1.0, 0.0),

@@ -43,7 +43,7 @@ def test_sites_json_is_one_object_matching_the_map(capsys):
 def test_sites_text_lists_the_catalogue(capsys):
     assert main(["sites"]) == 0
     out = capsys.readouterr().out
-    assert "220 sites" in out and "44 bones" in out and "^ssp -> ssp" in out
+    assert "223 sites" in out and "44 bones" in out and "^ssp -> ssp" in out
 
 
 def test_realize_writes_a_rollout_and_a_report(tmp_path, capsys):

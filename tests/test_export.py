@@ -492,7 +492,7 @@ def test_an_npz_of_another_model_is_refused(model, tmp_path, capsys):
     err = _exit2(["export", str(wrong_sites), "-o", str(out)], capsys)
     assert err == (
         f"azee-mj: error: {wrong_sites}: not a rollout of this signer: its "
-        "site_names are not the catalogue's 220 AZee sites\n"
+        "site_names are not the catalogue's 223 AZee sites\n"
     )
     notnpz = tmp_path / "x.npz"
     notnpz.write_text("hello")

@@ -637,10 +637,10 @@ def test_control_characters_are_escaped_and_long_names_shortened():
 
 
 def test_an_unknown_site_is_quoted_as_written(tmp_path):
-    data = _score(constraints=[{"type": "place", "site": "@NOPE(s)", "at": "@FH"}])
+    data = _score(constraints=[{"type": "place", "site": "@NOSE(s)", "at": "@FH"}])
     with pytest.raises(ScoreError) as e:
         load_score(data)
     assert str(e.value) == (
-        "R: constraint 1 (place): unknown site '@NOPE(s)'; did you mean "
+        "R: constraint 1 (place): unknown site '@NOSE(s)'; did you mean "
         "'@NO(s)'? (azee-mj sites lists all)"
     )

@@ -72,3 +72,76 @@ def test_a_group_still_held_is_kept_without_a_solve(solver):
     assert kept.converged and kept.result.iterations == 0
     np.testing.assert_array_equal(kept.qpos, state)
     assert len(adapter.results) == before
+
+
+def test_a_pinch_without_a_hand_shape_bends_the_fingers_not_the_arm(solver):
+    # the thumb tip on the index pad, no morph: only the hand's joints bring them together
+    score = _score([{"type": "place", "site": "@T_TIP(s)", "at": "@I_PAD(s)"}])
+    sched = Schedule(score, solver)
+    (dc,) = sched.block_constraints(sched.blocks[0])
+    assert dc.tracks == {"hand_R"}
+    keys = KeyPoser(IKAdapter(sched), Mode.MULTITRACK).key_postures()
+    assert not keys["arm_R"] and not keys["spine"]
+    d = solver.at(keys["hand_R"][0].q).d
+    gap = d.site_xpos[solver.site_id("T_TIP_R")] - d.site_xpos[solver.site_id("I_PAD_R")]
+    assert np.linalg.norm(gap) <= 1e-3
+    # the fingers no placement names keep their natural posture
+    m, q = solver.model, keys["hand_R"][0].q
+    for j in ("ring_R_1_flex", "little_R_2_flex"):
+        a = m.jnt_qposadr[solver.joint_id(j)]
+        assert q[a] == pytest.approx(sched.home[a], abs=0.05)
+
+
+def test_a_pinch_of_two_hands_is_not_a_pinch(solver):
+    score = _score([{"type": "place", "site": "@I_TIP(s)", "at": "@I_TIP(w)"}])
+    sched = Schedule(score, solver)
+    (dc,) = sched.block_constraints(sched.blocks[0])
+    assert sched.comp.pinch_track(dc.source) is None
+    assert dc.tracks == {"arm_R", "arm_L"}
+
+
+def test_a_miss_does_not_bow_the_trunk(solver):
+    # an index pad on a point inside the belly: no posture meets it, leaning cannot help
+    score = _score([{"type": "place", "site": "@I_PAD(s)", "at": [0.0, -0.05, 0.25]}])
+    adapter = IKAdapter(Schedule(score, solver))
+    poser = KeyPoser(adapter, Mode.MULTITRACK)
+    keys = poser.key_postures()
+    d = adapter.schedule.track_dofs["spine"]
+    home = adapter.schedule.home
+    for k in keys["spine"]:
+        assert np.abs(k.q[d] - home[d]).max() <= np.deg2rad(5.0) + 1e-9
+    assert poser.reasons  # the report still says why it missed
+
+
+def test_joined_hands_with_an_oriented_palm_start_turned_as_asked(solver):
+    # the strong hand's edge on the weak palm, the weak palm up: both sides constrained,
+    # the hands flat from the start, the contact from 0.4 s (as bench/natural.py writes it)
+    flat = {"type": "morph", "id": "flat", "weight": 1.0}
+    touch = [
+        {"type": "place", "site": "@H_EDGE(s)", "at": "@PA(w)"},
+        {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "up"},
+    ]
+    score = load_score(
+        {
+            "format": "azee-score",
+            "version": 1,
+            "root": {
+                "name": "C",
+                "kind": "sync",
+                "start": 0.0,
+                "end": 0.8,
+                "children": [
+                    {"name": "S", "kind": "cstr", "start": 0.0, "end": 0.8, "constraints": [flat]},
+                    {"name": "T", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": touch},
+                ],
+            },
+        }
+    )
+    poser = KeyPoser(IKAdapter(Schedule(score, solver)), Mode.MULTITRACK)
+    keys = poser.key_postures()
+    assert poser.reasons == {}
+    k = solver.at(keys["arm_L"][-1].q)
+    edge = k.d.site_xpos[solver.site_id("H_EDGE_R")]
+    assert np.linalg.norm(edge - k.d.site_xpos[solver.site_id("PA_L")]) <= 1e-3
+    normal = k.d.xmat[solver.body_id("palm_L")].reshape(3, 3) @ np.array([0.0, -1.0, 0.0])
+    assert np.degrees(np.arccos(np.clip(normal[2], -1, 1))) <= 1.0 + 1e-6

@@ -329,7 +329,7 @@ def test_left_right_mirror_symmetry(model, data, posture):
             pairs += 1
         elif not re.search(r"_L(_\d)?$", n) and n != "Lssp":
             assert abs(p[1]) < 1e-9, n  # midline
-    assert pairs == (len(names) - 12 - 1) // 2  # 12 midline sites, ssp
+    assert pairs == (len(names) - 13 - 1) // 2  # 13 midline sites, ssp
     for b in range(model.nbody):
         t = _twin(model.body(b).name)
         if t:

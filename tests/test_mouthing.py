@@ -315,7 +315,7 @@ def test_the_documented_example_closes_the_lips_and_blinks(model):
     d = mujoco.MjData(model)
 
     def apertures(t: float) -> tuple[float, float]:
-        d.qpos[:] = r.qpos[round(t * r.fps)]
+        d.qpos[:] = r.qpos[round((r.score_start + t) * r.fps)]  # score time -> rollout
         mujoco.mj_kinematics(model, d)
         return face_mod.lip_aperture(model, d), face_mod.eyelid_aperture(model, d, "R")
 

@@ -585,9 +585,13 @@ _UNREACHABLE = {
 def test_a_miss_says_why(solver):
     rollout = timeline.realize(_UNREACHABLE, solver=solver)
     why = {f"{t.block}#{t.index}": t.reason for t in rollout.traces}
+    # said on the posture kept: the trunk upright (it does not bow toward a target it cannot
+    # reach; bowed, the clavicle came 293 mm nearer and the message said 462 mm)
     assert why["R.FAR#1"] == (
-        "out of reach by 462 mm (the target is 1189 mm from clav_R, the limb reaches 727 mm)"
+        "out of reach by 755 mm (the target is 1482 mm from clav_R, the limb reaches 727 mm)"
     )
+    spine = [solver.model.jnt_qposadr[solver.joint_id(j)] for j in DEFAULT_MAP.tracks["spine"]]
+    assert np.abs(rollout.qpos[:, spine] - solver.natural[spine]).max() <= np.deg2rad(5.0)
     assert why["R.TWO#1"] == "conflicts with R.TWO#2: each can be met without the other"
     assert why["R.TWO#2"] == "conflicts with R.TWO#1: each can be met without the other"
 

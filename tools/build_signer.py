@@ -336,6 +336,8 @@ def build_pelvis() -> Body:
 
     def sites(b):
         b.site("ABST_{X}", front(HIPS, -0.07, 0.075))
+        # the side of the hips, under the belt, where a hand rests on the hip
+        b.site("HIP_{X}", surface(HIPS, [0.2, -1.0, 0.35]))
 
     both_sides(sites, pelvis)
     return pelvis
@@ -387,6 +389,7 @@ def build_neck_head(b2: Body) -> Body:
     )
     nk_fwd = unit(np.cross([0, 1, 0], np.subtract(neck_ft[3:], neck_ft[:3])))
     neck.site("NK", nk_axis + NECK_RAD * nk_fwd)
+    neck.site("NAPE", nk_axis - NECK_RAD * nk_fwd)  # the back of the neck, opposite NK
 
     def nk(b):
         b.site("NK_{X}", nk_axis + [0, -NECK_RAD, 0])

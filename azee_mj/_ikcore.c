@@ -52,7 +52,24 @@ static void free_natural(Core* s) {
   s->edof = NULL, s->escale = s->comfort = s->neutral = NULL, s->anc = NULL;
 }
 
+/* The Python objects a Core holds (the owner, the callbacks: bound methods of the Plan that
+   holds the Core, a reference cycle) are visible to the cyclic garbage collector, so a Plan
+   is freed once unused instead of living as long as the process. */
+static int Core_traverse(Core* s, visitproc visit, void* arg) {
+  Py_VISIT(s->owner);
+  Py_VISIT(s->callback);
+  Py_VISIT(s->pref_cb);
+  return 0;
+}
+
+static int Core_clear(Core* s) {
+  Py_CLEAR(s->callback);
+  Py_CLEAR(s->pref_cb);
+  return 0;
+}
+
 static void Core_dealloc(Core* s) {
+  PyObject_GC_UnTrack(s);
   release(&s->rbuf);
   release(&s->Jbuf);
   release(&s->prbuf);
@@ -434,7 +451,9 @@ static PyMethodDef Core_methods[] = {
 static PyTypeObject CoreType = {
     PyVarObject_HEAD_INIT(NULL, 0).tp_name = "azee_mj._ikcore.Core",
     .tp_basicsize = sizeof(Core),
-    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC,
+    .tp_traverse = (traverseproc)Core_traverse,
+    .tp_clear = (inquiry)Core_clear,
     .tp_doc = "One posture problem compiled for the solver's inner loop.",
     .tp_new = PyType_GenericNew,
     .tp_init = (initproc)Core_init,

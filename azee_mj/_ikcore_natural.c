@@ -55,7 +55,7 @@ int natural_rows(Core* s, double* rn, double* Jn) {
     rn[ne + k] = s->comfort[f] * (d->qpos[f] - s->neutral[f]);
     Jn[(size_t)(ne + k) * nf + k] = s->comfort[f];
   }
-  if (s->npref) {
+  if (s->npref && s->pref_cb) {
     PyObject* out = PyObject_CallNoArgs(s->pref_cb);
     if (!out) return -1;
     Py_DECREF(out);

@@ -126,7 +126,7 @@ int raw_rows(Core* s) {
       J[B->dof] = 1.0;
     }
   }
-  if (s->has_generic && s->callback != Py_None) {
+  if (s->has_generic && s->callback && s->callback != Py_None) {
     PyObject* out = PyObject_CallNoArgs(s->callback);
     if (!out) return -1;
     Py_DECREF(out);

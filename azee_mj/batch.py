@@ -1,26 +1,34 @@
-"""Realizing many scores at once: one worker process per core, one solver per worker.
+"""Realizing many scores at once: on one worker process per core (the default), or on the
+workers of a Dask cluster (the ``cluster`` extra), one solver per worker.
 
 Each score (a ``SCORE.json`` or an ``EXPR.azee``) is realized exactly as it would be alone
 (the solver keeps no state between scores) and its rollout written by the output rule of
 :mod:`azee_mj.files` (a temporary file renamed when complete), so an output is whole or
-absent. A bad score costs only its own output: its one-line message names the file, the
+absent. A failing score costs only its own output: a bad score gives its one-line message
+naming the file, an unexpected error (a bug) an "internal error" line naming it, and the
 others still complete. Stopping the batch (SIGTERM, Ctrl-C) stops every worker and leaves
-no temporary file. Units: frames per second.
+no temporary file; a worker whose batch process died (SIGKILL, SIGHUP) ends itself within a
+second (:func:`lifeline`). Units: frames per second, seconds.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
+import socket
+import threading
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from azee_mj.errors import AzeeError
+from azee_mj.lifeline import lifeline
 
 if TYPE_CHECKING:
     from azee_mj.azee import Lexicon
@@ -43,9 +51,13 @@ class Job:
 
 @dataclass(frozen=True)
 class Outcome:
-    """What became of a :class:`Job`: ``lines`` to print on success, else ``error``;
-    ``missed`` constraints out of tolerance; ``wall`` and ``cpu`` are the seconds it took in
-    its worker (elapsed, and CPU time)."""
+    """What became of a :class:`Job`: ``lines`` to print on success, else ``error``.
+
+    ``duration`` is the score's length [s], ``frames`` the rollout's; ``constraints`` were
+    traced, ``missed`` of them out of tolerance; ``findings`` counts what ``azee-mj check``
+    finds in the rollout (penetrations, joint-range violations, non-finite postures);
+    ``wall`` and ``cpu`` are the seconds it took in its worker (elapsed, and CPU time);
+    ``worker`` is ``HOST:PID`` of the process that realized it."""
 
     job: Job
     lines: tuple[str, ...] = ()
@@ -53,6 +65,11 @@ class Outcome:
     missed: int = 0
     wall: float = 0.0
     cpu: float = 0.0
+    duration: float = 0.0
+    frames: int = 0
+    constraints: int = 0
+    findings: int = 0
+    worker: str = ""
 
     @property
     def ok(self) -> bool:
@@ -85,14 +102,23 @@ def score_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
 
 def plan(scores: Sequence[Path], out_dir: Path, report_dir: Path | None = None) -> list[Job]:
     """Jobs writing ``out_dir/STEM.npz`` (and ``report_dir/STEM.json``) for each score.
-    Raises :class:`AzeeError` when two scores would write the same output."""
+    Raises :class:`AzeeError` when two scores would write the same file, also through a
+    symbolic link already in an output directory."""
     jobs, seen = [], {}
     for s in scores:
-        out = out_dir / f"{s.stem}.npz"
-        if out in seen:
-            raise AzeeError(f"{seen[out]} and {s} would both write {out}; rename one")
-        seen[out] = s
-        jobs.append(Job(s, out, report_dir / f"{s.stem}.json" if report_dir else None))
+        job = Job(
+            s, out_dir / f"{s.stem}.npz", report_dir / f"{s.stem}.json" if report_dir else None
+        )
+        for out in (job.output, job.report):
+            if out is None:
+                continue
+            real = os.path.realpath(out)
+            if real in seen:
+                other, first = seen[real]
+                via = "" if first == out else f" (through {first} and {out})"
+                raise AzeeError(f"{other} and {s} would both write {real}{via}; rename one")
+            seen[real] = (s, out)
+        jobs.append(job)
     return jobs
 
 
@@ -150,48 +176,110 @@ def realize_file(
     ``motion``: the realizer's ``rest``, ``hold`` and ``tempo`` (see
     :func:`~azee_mj.timeline.realize`). Raises :class:`AzeeError` for a bad score or an
     output that may not be written."""
+    return _realize_file(job, fps, mode, solver, lexicon, progress, motion)[1]
+
+
+def _realize_file(job, fps, mode, solver, lexicon, progress, motion=None) -> tuple[Score, Rollout]:
+    """The score as realized (at its tempo) and its rollout, written."""
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
-    from azee_mj.timeline import realize
+    from azee_mj.timeline import at_tempo, realize
 
-    rollout = realize(
-        read_score(job.score, lexicon),
-        fps=fps,
-        mode=mode,
-        solver=solver,
-        progress=progress,
-        **(motion or {}),
-    )
+    motion = dict(motion or {})
+    score = read_score(job.score, lexicon)
+    rollout = realize(score, fps=fps, mode=mode, solver=solver, progress=progress, **motion)
+    score = at_tempo(score, motion.get("tempo", 1.0), 0.0)
     save_rollout(job.output, rollout, inputs=(job.score,))
     if job.report is not None:
         save_json(job.report, rollout.report(), inputs=(job.score, job.output))
-    return rollout
+    return score, rollout
 
 
-_SOLVER: Solver | None = None
-_LEXICON: Lexicon | tuple[str, ...] = ()
+# -- the worker side: one solver and one lexicon per worker thread -----------------------
+
+_LOCAL = threading.local()
+
+
+def _worker_state(lexicon: tuple[str, ...]) -> tuple[Solver, Lexicon | tuple[str, ...]]:
+    """This thread's solver and the lexicon of ``lexicon`` (made on first use, kept)."""
+    if getattr(_LOCAL, "key", None) != lexicon:
+        from azee_mj.schedule import make_solver
+
+        lex: Lexicon | tuple[str, ...] = ()
+        if lexicon:
+            from azee_mj.azee import Lexicon
+
+            lex = Lexicon(lexicon)
+        _LOCAL.solver = getattr(_LOCAL, "solver", None) or make_solver()
+        _LOCAL.lexicon, _LOCAL.key = lex, lexicon
+    return _LOCAL.solver, _LOCAL.lexicon
+
+
+def worker_name() -> str:
+    """``HOST:PID`` of this process (a manifest's ``worker``)."""
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def findings(score: Score, rollout: Rollout, solver: Solver) -> int:
+    """How many findings ``azee-mj check --score`` reports on ``rollout``: penetrations,
+    joint-range violations and non-finite postures."""
+    from azee_mj.check import check_poses
+    from azee_mj.schedule import contact_pairs
+
+    allowed = contact_pairs(score, rollout.time, solver, rollout.score_start)
+    report = check_poses(solver.model, rollout.qpos, allowed=allowed)
+    return len(report.penetrations) + len(report.range_violations) + len(report.nonfinite)
+
+
+def run_job(
+    job: Job, fps: float, mode: str, lexicon: tuple[str, ...] = (), motion: Mapping | None = None
+) -> Outcome:
+    """Realize one job in this worker (``motion``: see :func:`realize_file`) and say what
+    became of it; never raises (but for ``KeyboardInterrupt`` and the like): a bad score or
+    a bug is the outcome's ``error``."""
+    t0, c0 = time.perf_counter(), time.process_time()
+
+    def failed(error: str) -> Outcome:
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        return Outcome(job, error=error, wall=wall, cpu=cpu, worker=worker_name())
+
+    try:
+        solver, lex = _worker_state(lexicon)
+        score, rollout = _realize_file(job, fps, mode, solver, lex, None, motion)
+        found = findings(score, rollout, solver)
+    except AzeeError as e:
+        msg = str(e)
+        return failed(msg if msg.startswith(str(job.score)) else f"{job.score}: {msg}")
+    except Exception as e:  # noqa: BLE001 - a bug (or RecursionError): this score only
+        from azee_mj.errors import shorten
+
+        return failed(f"{job.score}: internal error ({shorten(f'{type(e).__name__}: {e}', 200)})")
+    return Outcome(
+        job,
+        summary_lines(job.output, rollout, fps),
+        missed=missed(rollout),
+        wall=time.perf_counter() - t0,
+        cpu=time.process_time() - c0,
+        duration=float(score.duration),
+        frames=len(rollout.time),
+        constraints=len(rollout.traces),
+        findings=found,
+        worker=worker_name(),
+    )
+
+
+# -- the process pool -----------------------------------------------------------------------
+
 _PRELOAD = (
     "azee_mj.azee",
     "azee_mj.batch",
+    "azee_mj.check",
     "azee_mj.files",
     "azee_mj.rollout_io",
     "azee_mj.schedule",
     "azee_mj.score",
     "azee_mj.timeline",
 )
-
-
-def _prepare(lexicon: Sequence[str]) -> None:
-    """One solver and one lexicon for all the jobs of this process."""
-    global _SOLVER, _LEXICON
-    from azee_mj.schedule import make_solver
-
-    _SOLVER = make_solver()
-    _LEXICON = ()
-    if lexicon:
-        from azee_mj.azee import Lexicon
-
-        _LEXICON = Lexicon(lexicon)
 
 
 def _on_term(signum, frame) -> None:
@@ -201,33 +289,13 @@ def _on_term(signum, frame) -> None:
     os._exit(128 + signum)
 
 
-def _init_worker(lexicon: Sequence[str]) -> None:
+def _init_worker(lexicon: tuple[str, ...], parent: int) -> None:
     """A pool worker: SIGTERM removes the file being written and ends the worker at once;
-    Ctrl-C is left to the parent, which stops the workers."""
+    Ctrl-C is left to the parent, which stops the workers; the worker ends with ``parent``."""
     signal.signal(signal.SIGTERM, _on_term)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _prepare(lexicon)
-
-
-def _run(job: Job, fps: float, mode: str, motion: Mapping | None = None) -> Outcome:
-    t0, c0 = time.perf_counter(), time.process_time()
-    try:
-        rollout = realize_file(
-            job, fps=fps, mode=mode, solver=_SOLVER, lexicon=_LEXICON, motion=motion
-        )
-    except AzeeError as e:
-        msg = str(e)
-        error = msg if msg.startswith(str(job.score)) else f"{job.score}: {msg}"
-        return Outcome(
-            job, error=error, wall=time.perf_counter() - t0, cpu=time.process_time() - c0
-        )
-    return Outcome(
-        job,
-        summary_lines(job.output, rollout, fps),
-        missed=missed(rollout),
-        wall=time.perf_counter() - t0,
-        cpu=time.process_time() - c0,
-    )
+    lifeline(parent)
+    _worker_state(lexicon)
 
 
 def _size(path: Path) -> int:
@@ -237,57 +305,34 @@ def _size(path: Path) -> int:
         return 0
 
 
-def realize_many(
-    jobs: Sequence[Job],
-    *,
-    fps: float = 50.0,
-    mode: str = "multitrack",
-    workers: int | None = None,
-    lexicon: Iterable[str | os.PathLike] = (),
-    on_done: Callable[[Outcome, int], None] | None = None,
-    motion: Mapping | None = None,
-) -> list[Outcome]:
-    """Realize every job, ``workers`` processes at once (default :func:`usable_cores`;
-    1 runs here, without a pool); ``.azee`` scores are compiled with the sign directories
-    ``lexicon``. ``on_done(outcome, finished)`` is called in this process as each job ends,
-    in completion order; the outcomes are returned in job order. The output directories
-    must exist (the output rule of :mod:`azee_mj.files`).
+def largest_first(jobs: Sequence[Job]) -> list[int]:
+    """Job indices, largest score file first (so no long score starts last while the
+    other workers idle)."""
+    return sorted(range(len(jobs)), key=lambda i: -_size(jobs[i].score))
 
-    Workers start with the ``forkserver`` method where there is one (``spawn`` otherwise),
-    so no GL or MuJoCo state is inherited, and each compiles one solver for all its jobs.
-    An exception here (Ctrl-C, SIGTERM, a worker that died) cancels the jobs not started
-    and terminates the workers, each removing the file it was writing, before it propagates.
-    """
-    workers = max(1, min(workers or usable_cores(), len(jobs)))
-    lex = tuple(map(str, lexicon))
-    done: dict[int, Outcome] = {}
 
-    def finish(i: int, o: Outcome) -> None:
-        done[i] = o
-        if on_done is not None:
-            on_done(o, len(done))
-
-    if workers == 1:
-        _prepare(lex)
-        for i, job in enumerate(jobs):
-            finish(i, _run(job, fps, mode, motion))
-        return [done[i] for i in range(len(jobs))]
+def _pool_context():
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
         # Import once in the server (if not started yet), not in every worker.
         ctx.set_forkserver_preload(list(_PRELOAD))
-    else:
-        ctx = multiprocessing.get_context("spawn")
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+@contextlib.contextmanager
+def _pool(workers: int, lexicon: tuple[str, ...]):
+    """A process pool whose workers end with this process; any exception here (Ctrl-C,
+    SIGTERM) terminates them, each removing the file it was writing."""
     before = set(multiprocessing.active_children())
-    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(lex,))
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=_pool_context(),
+        initializer=_init_worker,
+        initargs=(lexicon, os.getpid()),
+    )
     try:
-        # Largest scores first, so that no long one starts last while the other workers idle.
-        order = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i].score))
-        pending = {pool.submit(_run, jobs[i], fps, mode, motion): i for i in order}
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for f in finished:
-                finish(pending.pop(f), f.result())
+        yield pool
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
         started = set(multiprocessing.active_children()) - before
@@ -298,4 +343,110 @@ def realize_many(
         raise
     finally:
         pool.shutdown(wait=True)
+
+
+def _pool_outcomes(
+    jobs: Sequence[Job],
+    fps: float,
+    mode: str,
+    workers: int,
+    lexicon: tuple[str, ...],
+    motion: Mapping | None = None,
+) -> Iterator[tuple[int, Outcome]]:
+    """(index, outcome) of every job as it ends, ``workers`` processes at once.
+
+    At most ``workers`` jobs are handed out at a time, so when a worker dies (killed, out of
+    memory, a crash in native code) the jobs it may have held are known: they are tried
+    once more in a fresh pool, and a job whose worker dies twice is a failed outcome."""
+    queue = largest_first(jobs)
+    lost: dict[int, int] = {}
+    while queue:
+        with _pool(workers, lexicon) as pool:
+            running: dict[Any, int] = {}
+            broken = False
+            while (queue and not broken) or running:
+                while queue and len(running) < workers and not broken:
+                    i = queue.pop(0)
+                    running[pool.submit(run_job, jobs[i], fps, mode, lexicon, motion)] = i
+                finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i = running.pop(f)
+                    try:
+                        yield i, f.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        lost[i] = lost.get(i, 0) + 1
+                        if lost[i] < 2:
+                            queue.insert(0, i)
+                        else:
+                            msg = f"{jobs[i].score}: its worker process died twice (killed?)"
+                            yield i, Outcome(jobs[i], error=msg)
+
+
+def _outcomes(
+    jobs: Sequence[Job],
+    fps: float,
+    mode: str,
+    workers: int,
+    lexicon: tuple[str, ...],
+    client: Any | None,
+    motion: Mapping | None = None,
+) -> Iterator[tuple[int, Outcome]]:
+    if client is not None:
+        from azee_mj.cluster import as_completed_on
+
+        calls = [
+            (run_job, (jobs[i], fps, mode, lexicon, motion), f"realize-{i}")
+            for i in range(len(jobs))
+        ]
+        priority = {i: -k for k, i in enumerate(largest_first(jobs))}
+        for i, result in as_completed_on(
+            client, calls, priority=[priority[i] for i in range(len(jobs))]
+        ):
+            if isinstance(result, BaseException):
+                what = f"{type(result).__name__}: {result}"
+                yield i, Outcome(jobs[i], error=f"{jobs[i].score}: its worker failed ({what})")
+            else:
+                yield i, result
+    elif workers == 1:
+        for i, job in enumerate(jobs):
+            yield i, run_job(job, fps, mode, lexicon, motion)
+    else:
+        yield from _pool_outcomes(jobs, fps, mode, workers, lexicon, motion)
+
+
+def realize_many(
+    jobs: Sequence[Job],
+    *,
+    fps: float = 50.0,
+    mode: str = "multitrack",
+    workers: int | None = None,
+    lexicon: Iterable[str | os.PathLike] = (),
+    on_done: Callable[[Outcome, int], None] | None = None,
+    client: Any | None = None,
+    motion: Mapping | None = None,
+) -> list[Outcome]:
+    """Realize every job (``motion``: see :func:`realize_file`); ``.azee`` scores are compiled with the sign directories
+    ``lexicon``. ``on_done(outcome, finished)`` is called in this process as each job ends,
+    in completion order; the outcomes are returned in job order. The output directories
+    must exist (the output rule of :mod:`azee_mj.files`).
+
+    Where: on the workers of the Dask ``client`` (a ``distributed.Client``; the files must be
+    on a file system its workers share, see ``docs/cluster.md``), else in a pool of
+    ``workers`` processes (default :func:`usable_cores`; 1 runs here, without a pool). Pool
+    workers start with the ``forkserver`` method where there is one (``spawn`` otherwise),
+    so no GL or MuJoCo state is inherited, and each compiles one solver for all its jobs.
+    An exception here (Ctrl-C, SIGTERM) cancels the jobs not started and stops the workers
+    of the pool, each removing the file it was writing, before it propagates.
+    """
+    if not jobs:
+        return []
+    workers = max(1, min(workers or usable_cores(), len(jobs)))
+    lex = tuple(map(str, lexicon))
+    done: dict[int, Outcome] = {}
+    motion = dict(motion) if motion else None
+    for i, outcome in _outcomes(jobs, fps, mode, workers, lex, client, motion):
+        done[i] = outcome
+        if on_done is not None:
+            on_done(outcome, len(done))
     return [done[i] for i in range(len(jobs))]

@@ -2,9 +2,9 @@
 realize, check, preview, render, export, report.
 
 Exit status: 0 done; 1 a check found problems (``check``, or ``realize --strict`` with a
-constraint out of tolerance, a penetration or a finding: a speed over the human range); 2 bad
-input (a score, rollout, option or output path; one message, no output file; when realizing
-several scores, any bad one, the others written);
+constraint out of tolerance, a penetration or a finding: a speed over the human range), or
+some of several scores failed (the others written, a summary naming the failed files); 2 bad
+input (a score, rollout, option or output path; one message, no output file);
 3 an internal error (a bug: one line asking for a report; ``--debug`` shows the
 traceback); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM, SIGHUP or SIGQUIT). A closed
 standard output (``azee-mj sites | head -1``) ends the command quietly with 0. Every
@@ -248,6 +248,8 @@ def _cmd_realize(args, run: _Run) -> int:
         if args.blinks is not None:
             raise AzeeError("--blinks: give one score (automatic blinks are per score)")
         return _realize_many(args)
+    if args.resume or args.manifest or args.scheduler:
+        raise AzeeError("--resume, --manifest and --scheduler are for several scores (-o DIR/)")
     if args.dynamics and args.mode != "multitrack":
         raise AzeeError("--dynamics follows the multitrack realization; drop --mode flattened")
     path = args.score[0]
@@ -327,14 +329,17 @@ def _dir_like(path: str) -> bool:
 
 
 def _realize_many(args) -> int:
-    """Several scores (or directories of them) to ``-o DIR/``, one process per core.
+    """Several scores (or directories of them) to ``-o DIR/``: in a process pool (one
+    process per core, or ``--jobs``), or on a Dask cluster (``--scheduler``).
 
     Everything is checked before any score is realized: the output (and ``--report``)
-    directories exist and are writable, no two scores write the same file, and no output is
-    an input. Exit 2 if any score was bad (it outranks ``--strict``), else 1 with
-    ``--strict`` if any score missed a constraint, else 0."""
-    from azee_mj.batch import plan, realize_many, score_files
+    directories exist and are writable, no two scores write the same file, no output is an
+    input, and the manifest may be written. A failing score never stops the others: exit 1
+    if any failed or (with ``--strict``) missed a constraint, else 0."""
+    from azee_mj.batch import plan, score_files
+    from azee_mj.corpus import realize_corpus
     from azee_mj.files import check_output, check_output_dir
+    from azee_mj.model import load_model
 
     scores = score_files(args.score)
     lexicon = args.lexicon or ()
@@ -351,26 +356,32 @@ def _realize_many(args) -> int:
         for out in (j.output, j.report):
             if out is not None:
                 check_output(out, inputs)
-    bar = _Progress(f"realize {len(jobs)} scores")
+    if args.manifest:
+        check_output(args.manifest, inputs)
+        if any(os.path.realpath(args.manifest) == os.path.realpath(j.output) for j in jobs):
+            raise AzeeError(f"{args.manifest}: is also a score's output; write to another file")
+    with contextlib.ExitStack() as stack:
+        client = None
+        if args.scheduler:
+            from azee_mj.batch import usable_cores
+            from azee_mj.cluster import open_client
 
-    def done(o, n):
-        if o.ok:
-            print("\n".join(map(printable, o.lines)), flush=True)
-        else:
-            print(f"azee-mj: error: {one_line(o.error)}", file=sys.stderr, flush=True)
-        bar(n / len(jobs))
-
-    outcomes = realize_many(
-        jobs,
-        fps=args.fps,
-        mode=args.mode,
-        workers=args.jobs,
-        lexicon=lexicon,
-        on_done=done,
-        motion=_motion(args),
-    )
+            n = min(args.jobs or usable_cores(), len(jobs))
+            client = stack.enter_context(open_client(args.scheduler, n))
+        outcomes, _ = realize_corpus(
+            jobs,
+            nq=load_model().nq,
+            fps=args.fps,
+            mode=args.mode,
+            workers=args.jobs,
+            lexicon=lexicon,
+            client=client,
+            manifest=args.manifest,
+            resume_run=args.resume,
+            motion=_motion(args),
+        )
     if not all(o.ok for o in outcomes):
-        return EXIT_BAD_INPUT
+        return EXIT_FINDINGS
     return EXIT_FINDINGS if args.strict and any(o.missed for o in outcomes) else EXIT_OK
 
 
@@ -625,7 +636,28 @@ def build_parser() -> argparse.ArgumentParser:
         help="play the score F times as fast (0.5: half speed; default 1)",
     )
     r.add_argument(
-        "--jobs", type=int, help="processes for several scores (default: one per usable core)"
+        "--jobs",
+        type=int,
+        help="processes (or local Dask workers) for several scores (default: one per usable core)",
+    )
+    r.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="realize several scores on Dask: 'local' (a cluster of --jobs workers here), a "
+        "scheduler address (tcp://HOST:8786) or a scheduler file (.json); needs the cluster "
+        "extra",
+    )
+    r.add_argument(
+        "--resume",
+        action="store_true",
+        help="skip the scores whose output (and report) exist, are newer than the score and "
+        "validate: finish a stopped batch",
+    )
+    r.add_argument(
+        "--manifest",
+        metavar="FILE",
+        help="write one row per score (input, output, duration, frames, constraints met, "
+        "findings, time, worker) to FILE.jsonl or FILE.csv",
     )
     r.add_argument(
         "--dynamics",

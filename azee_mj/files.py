@@ -194,9 +194,11 @@ def save_npz(
     path: str | os.PathLike, arrays: dict[str, np.ndarray], inputs: Iterable[str | os.PathLike] = ()
 ) -> None:
     """Write numeric / fixed-width text arrays to ``path`` as a compressed ``.npz`` (loads
-    with ``np.load(..., allow_pickle=False)``); the same arrays always give the same bytes."""
+    with ``np.load(..., allow_pickle=False)``); the same arrays always give the same bytes.
+    A value with a ``blocks()`` method (a :class:`~azee_mj.frames.Frames`) is written a
+    block of frames at a time, never whole in memory, to the same bytes."""
     for k, v in arrays.items():
-        if np.asarray(v).dtype == object:
+        if not hasattr(v, "blocks") and np.asarray(v).dtype == object:
             raise TypeError(f"array {k!r} has dtype object; it would need pickle")
     with (
         atomic_path(path, ".npz", inputs) as tmp,
@@ -207,7 +209,23 @@ def save_npz(
             info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             with zf.open(info, "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.asanyarray(v), allow_pickle=False)
+                if hasattr(v, "blocks"):
+                    _write_blocks(f, v)
+                else:
+                    np.lib.format.write_array(f, np.asanyarray(v), allow_pickle=False)
+
+
+def _write_blocks(f, frames) -> None:
+    """An ``.npy`` of ``frames`` (C order) written a block at a time, as ``write_array``
+    writes the whole array."""
+    header = {
+        "descr": np.lib.format.dtype_to_descr(frames.dtype),
+        "fortran_order": False,
+        "shape": frames.shape,
+    }
+    np.lib.format.write_array_header_1_0(f, header)
+    for _, block in frames.blocks():
+        f.write(np.ascontiguousarray(block, frames.dtype).tobytes())
 
 
 def save_json(path: str | os.PathLike, obj, inputs: Iterable[str | os.PathLike] = ()) -> None:

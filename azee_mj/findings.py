@@ -61,6 +61,15 @@ def block_at(intervals, t: float, score_start: float, end: float) -> str:
     return intervals[-1].block
 
 
+def _columns(site_pos, sites: list[int]) -> np.ndarray:
+    """(T, len(sites), 3) the ``sites`` of ``site_pos`` (T, S, 3), a block of frames at a
+    time when it has blocks (a lazy :class:`~azee_mj.frames.Frames`: never whole)."""
+    if hasattr(site_pos, "blocks"):
+        parts = [b[:, sites] for _, b in site_pos.blocks()]
+        return np.concatenate(parts) if parts else np.zeros((0, len(sites), 3))
+    return np.asarray(site_pos)[:, sites]
+
+
 def speed_findings(
     rollout_time: np.ndarray,
     qpos: np.ndarray,
@@ -79,10 +88,11 @@ def speed_findings(
         return []
     fps = 1.0 / float(rollout_time[1] - rollout_time[0])
     out = []
+    wrists = [site for site in WRISTS if site in site_names]
+    tracks = _columns(site_pos, [site_names.index(site) for site in wrists])
     checks = [
-        (site, WRISTS[site], frame_speeds(site_pos[:, site_names.index(site)], fps), "m/s")
-        for site in WRISTS
-        if site in site_names
+        (site, WRISTS[site], frame_speeds(tracks[:, k], fps), "m/s")
+        for k, site in enumerate(wrists)
     ]
     checks += [(j, tr, frame_speeds(qpos[:, adr], fps), "rad/s") for j, (tr, adr) in joints.items()]
     for what, track, v, unit in checks:

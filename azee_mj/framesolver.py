@@ -20,6 +20,7 @@ from azee_mj import ik
 from azee_mj import score as sc
 from azee_mj.blend import BRANCH_SPEED, Key, goal_key, minjerk, next_still
 from azee_mj.ikadapter import IKAdapter
+from azee_mj.intervals import IntervalIndex
 from azee_mj.kinematics import Const, SitePos
 from azee_mj.routes import path_points
 
@@ -33,6 +34,8 @@ PATH_TOL = 1e-3
 #: A frame's step box over the largest joint change of the blend into it: the box never
 #: holds a joint slower than its blend moves.
 STEP_MARGIN = 1.5
+#: Constraint sets whose moved dofs are kept at most (a cache: it would grow with the score).
+NEEDS_CACHE = 256
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -55,33 +58,40 @@ class CurvePreference:
 
 
 def transpath_points(
-    adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray
+    adapter: IKAdapter,
+    b: sc.Block,
+    q: np.ndarray,
+    times: np.ndarray,
+    frames: slice = slice(None),
 ) -> np.ndarray:
-    """(T, 3) path points [m] of transpath block ``b`` at every frame of ``q`` (T, nq)
-    (valid inside its interval): from the site where the frames put it at the block's
-    start to where they put it at its end, along its route, in minimum-jerk time."""
+    """(F, 3) path points [m] of transpath block ``b`` at the frames ``frames`` (default
+    every frame) of ``q`` (T, nq) (valid inside its interval): from the site where the
+    frames put it at the block's start to where they put it at its end, along its route,
+    in minimum-jerk time."""
     sched = adapter.schedule
     site = SitePos(sched.comp.site(b.transpath_site))
     fs = min(int(np.searchsorted(times, b.start - 1e-9)), len(times) - 1)
     fe = min(int(np.searchsorted(times, b.end - 1e-9)), len(times) - 1)
     x0, x1 = (adapter.at(q[f]).value(site) for f in (fs, fe))
-    u = minjerk((times - b.start) / b.duration)
+    u = minjerk((times[frames] - b.start) / b.duration)
     return path_points(b.route, x0, x1, u, adapter.at(q[fs]), sched.smap)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Path:
     """A transpath during pass 2: its block, the model site it moves, the tracks of that
-    site's limb and its points (T, 3) [m]."""
+    site's limb and its points (F, 3) [m] at the frames from ``first`` on that its
+    interval holds (only those: a long score has many transpaths and many frames)."""
 
     block: sc.Block
     site: str
     limbs: frozenset[str]
     points: np.ndarray
+    first: int = 0
 
     def place(self, f: int) -> cn.Place:
-        """The placement of the site on its path point at frame ``f``."""
-        at = Const(tuple(self.points[f]))
+        """The placement of the site on its path point at frame ``f`` (inside the block)."""
+        at = Const(tuple(self.points[f - self.first]))
         return cn.Place(self.site, at, PATH_TOL, f"{self.block.path}@path")
 
 
@@ -89,7 +99,39 @@ def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray)
     """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]."""
     comp = adapter.schedule.comp
     site = comp.site(b.transpath_site)
-    return Path(b, site, frozenset(comp.site_tracks(site)), transpath_points(adapter, b, q, times))
+    inside = slice(*np.searchsorted(times, [b.start, b.end]).tolist())  # start <= t < end
+    points = transpath_points(adapter, b, q, times, inside)
+    return Path(b, site, frozenset(comp.site_tracks(site)), points, inside.start)
+
+
+class BlendCurve:
+    """The blend's frames ``q`` (T, nq) as they were before the per-frame solves changed
+    them, without a copy of them all (a copy grows with the score): frames are solved in
+    order, so the frames after the current one are still the blend's in ``q``, and the
+    current and previous ones are kept as :meth:`advance` reaches them."""
+
+    def __init__(self, q: np.ndarray):
+        self.q, self.f = q, -1
+        self.current: np.ndarray | None = None
+        self.previous: np.ndarray | None = None
+
+    def advance(self, f: int) -> None:
+        """Frame ``f`` is next to be solved (call before changing ``q[f]``)."""
+        self.previous, self.current, self.f = self.current, self.q[f].copy(), f
+
+    def __getitem__(self, x: int) -> np.ndarray:
+        if x > self.f:
+            return self.q[x]
+        if x == self.f:
+            return self.current
+        if x == self.f - 1 and self.previous is not None:
+            return self.previous
+        raise IndexError(f"frame {x} of the blend is no longer kept (now at frame {self.f})")
+
+
+def key_index(keys: dict[str, list[Key]]) -> dict[str, IntervalIndex]:
+    """Per track, the interval index of its keys' spans."""
+    return {tr: IntervalIndex((k.start, k.end) for k in ks) for tr, ks in keys.items()}
 
 
 class FrameSolver:
@@ -110,8 +152,9 @@ class FrameSolver:
         times the blend's largest joint change into the frame when that is more (a
         transition the score times faster than the box moves at the speed it needs)."""
         change = np.zeros(len(curve))
-        if len(curve) > 1:
-            change[1:] = np.abs(np.diff(curve, axis=0)).max(axis=1)
+        for a in range(1, len(curve), 4096):  # a block at a time: no copy of every frame
+            b = min(a + 4096, len(curve))
+            change[a:b] = np.abs(curve[a:b] - curve[a - 1 : b - 1]).max(axis=1)
         return np.maximum(self.base, STEP_MARGIN * change)
 
     def paths(self, q: np.ndarray, times: np.ndarray) -> list[Path]:
@@ -125,17 +168,21 @@ class FrameSolver:
         """Frames ``q`` (T, nq) (the blends, solved in place) where the tracks ``names``
         blend (``moving``, (T, tracks)) under the constraints of their ``keys``."""
         paths = self.paths(q, times)
-        curve = q.copy()
+        curve = BlendCurve(q)
         still = next_still(moving)
         joints = self.schedule.track_joints
-        steps = self.steps(curve)
+        steps = self.steps(q)
         self._reach = np.cumsum(steps)
+        # what holds a frame, in logarithmic time: not by asking every path and key
+        paths_at = IntervalIndex((p.block.start, p.block.end) for p in paths)
+        keys_at = key_index(keys)
         for f, t in enumerate(times):
             self.step = float(steps[f])
+            curve.advance(f)
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
-            cons, free = self.held(keys, tracks, t)
-            for p in paths:
-                if p.block.start <= t < p.block.end and p.limbs & tracks:
+            cons, free = self.held(keys, tracks, t, keys_at)
+            for p in (paths[j] for j in paths_at.at(t)):
+                if p.limbs & tracks:
                     cons.append(p.place(f))
                     free |= {j for tr in p.limbs for j in joints[tr]}
             if not cons:
@@ -146,14 +193,16 @@ class FrameSolver:
             q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
         return q
 
-    def held(self, keys, tracks, t: float) -> tuple[list, set[str]]:
+    def held(self, keys, tracks, t: float, keys_at=None) -> tuple[list, set[str]]:
         """The constraints the keys of blending ``tracks`` hold at time ``t`` [s], and the
-        joints they free. While blending, a key's constraints hold to its end, but for the
-        joint targets (hand shapes) the posture the blend heads for does not keep: those
-        joints are the blend's to move."""
+        joints they free (``keys_at``: :func:`key_index` of ``keys``, made if not given).
+        While blending, a key's constraints hold to its end, but for the joint targets
+        (hand shapes) the posture the blend heads for does not keep: those joints are the
+        blend's to move."""
+        keys_at = key_index(keys) if keys_at is None else keys_at
         cons, free = [], set()
         for tr in sorted(tracks):  # sorted: the same rows in any process
-            i = next((i for i, k in enumerate(keys[tr]) if k.start <= t < k.end), None)
+            i = keys_at[tr].first_at(t)
             if i is None:
                 continue
             key, goal = keys[tr][i], goal_key(keys[tr], i, self.schedule.track_dofs[tr])
@@ -200,6 +249,8 @@ class FrameSolver:
         ad, step = self.adapter, self.step
         key = tuple(cons)
         if key not in self._needs:
+            if len(self._needs) >= NEEDS_CACHE:  # (a path point is new at every frame)
+                self._needs.clear()
             self._needs[key] = set(ad.solver.free_dofs(ik.IKProblem(key)).tolist())
         needed = self._needs[key]
         moved = sorted(j for j in free if ad.dofs([j])[0] in needed) or sorted(free)
@@ -290,9 +341,10 @@ class FrameSolver:
         constraints with every constraint the keys of their tracks hold then, from the
         frame itself and nearest it (in place). Returns how many frames were solved."""
         joints, ad = self.schedule.track_joints, self.adapter
+        keys_at = key_index(keys)
         for f, missed in sorted(misses.items()):
             tracks = set().union(*(tr for _, tr in missed))
-            cons, free = self.held(keys, tracks, times[f])
+            cons, free = self.held(keys, tracks, times[f], keys_at)
             cons += [c for c, _ in missed if c not in cons]
             free = sorted(free | {j for tr in tracks for j in joints[tr]})
             near = (self.curve_preference(q[f], free),)

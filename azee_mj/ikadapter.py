@@ -1,5 +1,7 @@
 """The realizer's one way to the posture solver: an IK problem at a time of the score (the
-body pairs its contacts let touch then), solved, and every result kept for the stats.
+body pairs its contacts let touch then), solved, and what every solve took kept for the
+stats (a :class:`Solved` record: not the result, whose residuals and history would hold
+memory in proportion to the score's length).
 
 Both passes (key postures and frames) and the trills solve through one :class:`IKAdapter`
 on a read-only :class:`~azee_mj.schedule.Schedule`.
@@ -8,6 +10,8 @@ Units: seconds, metres, radians.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -21,14 +25,23 @@ from azee_mj.schedule import Schedule
 SOFT_TARGET_TOL = 0.3
 
 
+@dataclasses.dataclass(frozen=True)
+class Solved:
+    """What one solve took: LM ``iterations``, whether it ``converged``, wall ``time`` [s]."""
+
+    iterations: int
+    converged: bool
+    time: float
+
+
 class IKAdapter:
-    """Solves the realizer's problems on ``schedule``'s solver and keeps every result (in
-    solving order) in ``results``."""
+    """Solves the realizer's problems on ``schedule``'s solver and keeps what every solve
+    took (in solving order) in ``results``."""
 
     def __init__(self, schedule: Schedule):
         self.schedule = schedule
         self.solver = schedule.solver
-        self.results: list[ik.IKResult] = []
+        self.results: list[Solved] = []
         self._dofs: dict[tuple[str, ...], np.ndarray] = {}
 
     def problem(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKProblem:
@@ -45,9 +58,9 @@ class IKAdapter:
         return ik.IKProblem(tuple(cons), tuple(free), touching, seeds=tuple(seeds), **fields)
 
     def solve(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKResult:
-        """Solve :meth:`problem` from ``q0``; the result is kept in ``results``."""
+        """Solve :meth:`problem` from ``q0``; what it took is kept in ``results``."""
         res = self.solver.solve(self.problem(cons, free, q0, t, seeds, **fields), q0)
-        self.results.append(res)
+        self.results.append(Solved(res.iterations, res.converged, res.time))
         return res
 
     def at(self, q: np.ndarray, jacobians: bool = False) -> Kinematics:

@@ -18,6 +18,7 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import itertools
 
@@ -29,6 +30,7 @@ from azee_mj import score as sc
 from azee_mj.blend import EPS, SAME_POSTURE, Key
 from azee_mj.diagnose import diagnose
 from azee_mj.ikadapter import IKAdapter
+from azee_mj.intervals import IntervalIndex
 from azee_mj.preferences import Preferences, widened
 from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
@@ -241,6 +243,8 @@ class KeyPoser:
     def __init__(self, adapter: IKAdapter, mode: Mode):
         self.adapter, self.schedule, self.mode = adapter, adapter.schedule, mode
         self.groups = GroupPoser(adapter)
+        # the holds, and which hold a time (made on first use)
+        self._holds: tuple[list[sc.Block], IntervalIndex] | None = None
         self.reasons: dict[str, str] = {}
         #: id of a missing solve kept upright -> the joints to say why it missed with (the
         #: trunk's too: it was tried, so what conflicts is told as it is with the trunk)
@@ -263,18 +267,20 @@ class KeyPoser:
         trills = [
             (b, dc.tracks) for b, cons in cstr for dc in cons if isinstance(dc.source, sc.Trill)
         ]
+        # what holds an event's time, in logarithmic time (not by asking every block)
+        cstr_at = IntervalIndex((b.start, b.end) for b, _ in cstr)
+        trills_at = IntervalIndex((b.start, b.end) for b, _ in trills)
         for t0, t1 in itertools.pairwise(sched.events()):
             items = [
                 Active(dc, b.start == t0)
-                for b, cons in cstr
-                if b.start <= t0 < b.end
+                for b, cons in (cstr[i] for i in cstr_at.at(t0))
                 for dc in cons
                 if not isinstance(dc.source, sc.Trill)
             ]
             held = self.hold(keys, state, t0, t1)
             items = [it for it in items if not it.driven.tracks <= held]
             if self.mode is Mode.MULTITRACK:
-                trilled = [tr for b, tr in trills if b.start <= t0 < b.end]
+                trilled = [trills[i][1] for i in trills_at.at(t0)]
                 busy = held.union(*(it.driven.tracks for it in items), *trilled)
                 self.relax(keys, state, busy, {it.driven.con for it in items}, t0, t1)
             if items:
@@ -285,9 +291,11 @@ class KeyPoser:
         """Rule 4: over a segment ``[t0, t1)`` inside a hold, the tracks of the held block
         (realized: it ended before) keep the posture it reached. Returns those tracks."""
         sched, held = self.schedule, set()
-        for h in sched.blocks:
-            if h.kind is not sc.BlockKind.HOLD or not h.start <= t0 < h.end:
-                continue
+        if self._holds is None:
+            holds = [b for b in sched.blocks if b.kind is sc.BlockKind.HOLD]
+            self._holds = holds, IntervalIndex((h.start, h.end) for h in holds)
+        holds, holds_at = self._holds
+        for h in (holds[i] for i in holds_at.at(t0)):
             at = sched.by_path[h.hold_of].end
             for t in sched.held_tracks(h) - held:
                 q = self.posture_at(keys[t], at).copy()
@@ -298,9 +306,9 @@ class KeyPoser:
 
     def posture_at(self, keys: list[Key], t: float) -> np.ndarray:
         """The posture of the last of a track's ``keys`` starting before time ``t`` [s]
-        (neutral if none)."""
-        before = [k for k in keys if k.start < t - EPS]
-        return before[-1].q if before else self.schedule.home
+        (neutral if none; the keys are in time order: found by bisection)."""
+        i = bisect.bisect_left(keys, t - EPS, key=lambda k: k.start)
+        return keys[i - 1].q if i else self.schedule.home
 
     def pose_segment(self, items: list[Active], keys, state: np.ndarray, t0, t1) -> None:
         """Solve the groups of the segment ``[t0, t1)`` (the trunk recruited where the

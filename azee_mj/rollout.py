@@ -16,6 +16,7 @@ import numpy as np
 from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
+from azee_mj.frames import Frames, SitePositions
 from azee_mj.schedule import Mode, Schedule, TrackInterval
 from azee_mj.sites import SignerMap
 from azee_mj.timing import frame_range
@@ -139,7 +140,8 @@ class Rollout:
         lead-in from rest (0 without one). Schedule intervals and traces are on the
         rollout's clock (the score's times plus ``score_start``).
       qpos: (T, nq) postures in ``signer.xml`` joint order.
-      site_names: (S,) AZee site names; ``site_pos`` (T, S, 3) their positions [m].
+      site_names: (S,) AZee site names; ``site_pos`` (T, S, 3) their positions [m], a
+        :class:`~azee_mj.frames.Frames` (computed, or read from a file, a block at a time).
       schedule: per track, the intervals blocks drive it.
       traces: residual of every place / orient / look constraint over its interval.
       findings: what the motion does that a person would not (:class:`Finding`).
@@ -150,7 +152,7 @@ class Rollout:
     time: np.ndarray
     qpos: np.ndarray
     site_names: tuple[str, ...]
-    site_pos: np.ndarray
+    site_pos: np.ndarray | Frames
     schedule: Mapping[str, tuple[TrackInterval, ...]]
     traces: tuple[ConstraintTrace, ...]
     stats: SolveStats
@@ -256,19 +258,19 @@ def residuals(solver: ik.Solver, q: np.ndarray, items) -> list[np.ndarray]:
     return out
 
 
-def site_positions(solver: ik.Solver, smap: SignerMap, q: np.ndarray) -> np.ndarray:
+def site_positions(solver: ik.Solver, smap: SignerMap, q: np.ndarray) -> SitePositions:
     """(T, S, 3) world positions [m] of the AZee sites of ``smap`` (in its order) at the
-    frames ``q`` (T, nq)."""
+    frames ``q`` (T, nq): computed a block of frames at a time when read or saved, never
+    whole in memory (about 16 MB per minute of score at 50 fps)."""
     sids = np.array([solver.site_id(s) for s in smap.sites.values()])
-    out = np.empty((len(q), len(sids), 3))
-    for f in range(len(q)):
-        out[f] = solver.at(q[f]).d.site_xpos[sids]
-    return out
+    return SitePositions(solver.model, q, sids)
 
 
 def solve_stats(results, key_problems: int, total_time: float) -> SolveStats:
-    """The statistics of IK ``results`` (the first ``key_problems`` of them for key
-    postures), over a realization that took ``total_time`` [s]."""
+    """The statistics of IK ``results`` (anything with ``iterations``, ``converged`` and
+    ``time``: :class:`~azee_mj.ik.IKResult`, :class:`~azee_mj.ikadapter.Solved`; the
+    first ``key_problems`` of them for key postures), over a realization that took
+    ``total_time`` [s]."""
     return SolveStats(
         problems=len(results),
         key_problems=key_problems,

@@ -17,6 +17,13 @@ options and the package version. ``score_start`` (the rollout time [s] of the sc
 the lead-in from rest lies before it) reads 0 and ``findings`` empty when absent (files
 written before them).
 
+Long rollouts stay out of memory: the site positions, nine tenths of a rollout's data
+(about 16 MB per minute at 50 fps), are written a block of frames at a time from a
+:class:`~azee_mj.frames.Frames` (a realized rollout computes them from its postures as they
+are written) and read back lazily, a block at a time (``Rollout.site_pos`` of a loaded file
+is a :class:`~azee_mj.frames.NpzFrames`). The file is the same ``.npz`` as ever, byte for
+byte: ``np.load`` reads it whole, and so do files written before.
+
 :func:`load_rollout` validates everything it reads (names, shapes, dtypes, finite values,
 fps, sizes announced by array headers before reading them) and raises
 :class:`~azee_mj.errors.InputFileError` with one line; it never lets a corrupt or hostile
@@ -32,6 +39,7 @@ import numpy as np
 
 from azee_mj.errors import InputFileError, shorten
 from azee_mj.files import save_npz
+from azee_mj.frames import Frames, NpzFrames
 from azee_mj.physics import DynamicRollout
 from azee_mj.schedule import TrackInterval
 from azee_mj.timeline import ConstraintTrace, Finding, Mode, Rollout, SolveStats
@@ -47,8 +55,10 @@ MAX_BYTES = 3 * 2**29
 _STATS = ("problems", "key_problems", "iterations", "not_converged", "solve_time", "total_time")
 
 
-def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
-    """The arrays of the ``.npz`` file (numeric or fixed-width text), time first."""
+def rollout_arrays(rollout: Rollout, lazy: bool = False) -> dict[str, np.ndarray | Frames]:
+    """The arrays of the ``.npz`` file (numeric or fixed-width text), time first; with
+    ``lazy``, ``site_pos`` as the rollout holds it (a :class:`~azee_mj.frames.Frames`, to
+    be written a block at a time), else as an array."""
     r, tr = rollout, rollout.traces
     ivs = [i for v in r.schedule.values() for i in v]
     s = r.stats
@@ -58,7 +68,7 @@ def rollout_arrays(rollout: Rollout) -> dict[str, np.ndarray]:
         "fps": np.array(r.fps),
         "mode": np.array(r.mode.value),
         "site_names": np.array(r.site_names),
-        "site_pos": r.site_pos,
+        "site_pos": r.site_pos if lazy else np.asarray(r.site_pos),
         "residual_names": np.array([f"{t.block}#{t.index}" for t in tr], dtype=str),
         "residual_kinds": np.array([t.kind for t in tr], dtype=str),
         "residual_units": np.array([t.unit for t in tr], dtype=str),
@@ -166,17 +176,23 @@ def _dynamic(r: Rollout, numeric, text, bad) -> DynamicRollout:
 
 def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
     """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace)."""
-    arrays = rollout_arrays(rollout)
+    arrays = rollout_arrays(rollout, lazy=True)
     if isinstance(rollout, DynamicRollout):
         arrays |= dynamic_arrays(rollout)
     save_npz(path, arrays, inputs)
 
 
-def _read_arrays(path) -> dict[str, np.ndarray]:
+#: Arrays read lazily, a block of frames at a time (when stored as C-order float64).
+LAZY = ("site_pos",)
+
+
+def _read_arrays(path) -> dict[str, np.ndarray | Frames]:
     """The arrays of the ``.npz`` at ``path`` that a rollout holds (:data:`ARRAYS`; others
     are never read), after checking each header's announced size against the member's
-    size and the whole against :data:`MAX_BYTES` (:func:`_announced`)."""
+    size and the whole against :data:`MAX_BYTES` (:func:`_announced`); those of
+    :data:`LAZY` as :class:`~azee_mj.frames.NpzFrames` (never whole in memory)."""
     try:
+        lazy: dict[str, Frames] = {}
         with zipfile.ZipFile(path) as zf:
             total, members = 0, []
             for info in zf.infolist():
@@ -185,13 +201,17 @@ def _read_arrays(path) -> dict[str, np.ndarray]:
                 with zf.open(info) as f:
                     version = np.lib.format.read_magic(f)
                     if version == (1, 0):
-                        shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                        shape, fortran, dtype = np.lib.format.read_array_header_1_0(f)
                     else:
-                        shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+                        shape, fortran, dtype = np.lib.format.read_array_header_2_0(f)
+                    offset = f.tell()
                 total += _announced(path, info, shape, dtype, total)
-                members.append(info.filename.removesuffix(".npy"))
+                name = info.filename.removesuffix(".npy")
+                members.append(name)
+                if name in LAZY and not fortran and dtype == np.float64 and len(shape) >= 1:
+                    lazy[name] = NpzFrames(path, info.filename, shape, dtype, offset)
         with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in members}
+            return {**{k: z[k] for k in members if k not in lazy}, **lazy}
     except InputFileError:
         raise
     except FileNotFoundError:
@@ -230,6 +250,18 @@ def _announced(path, info: zipfile.ZipInfo, shape, dtype: np.dtype, before: int)
     return need
 
 
+def _nonfinite_frames(v: np.ndarray | Frames) -> np.ndarray:
+    """Frames of ``v`` holding NaN or infinity, a block at a time."""
+    T = len(v)
+    if not isinstance(v, Frames):
+        return np.flatnonzero(~np.isfinite(v.reshape(T, -1)).all(axis=1))
+    bad = [
+        start + np.flatnonzero(~np.isfinite(b.reshape(len(b), -1)).all(axis=1))
+        for start, b in v.blocks()
+    ]
+    return np.concatenate(bad) if bad else np.zeros(0, int)
+
+
 def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = False) -> Rollout:
     """Read a rollout ``.npz`` written for a model with ``nq`` joint coordinates; raise
     :class:`InputFileError` naming what is wrong. Non-finite postures are an error unless
@@ -260,6 +292,8 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
             raise bad(f"array '{k}' must hold numbers, got dtype {v.dtype}")
         if ndim is not None and v.ndim != ndim:
             raise bad(f"array '{k}' must have {ndim} dimension(s), got shape {v.shape}")
+        if isinstance(v, Frames):
+            return v
         return v.astype(float) if v.dtype.kind != "f" or v.dtype != np.float64 else v
 
     def text(k: str) -> np.ndarray:
@@ -290,10 +324,45 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         raise bad(f"site_pos must be (T, S, 3) = ({T}, {len(names)}, 3); got shape {sp.shape}")
     if not allow_nonfinite:
         for k, v in (("qpos", q), ("site_pos", sp)):
-            badf = np.flatnonzero(~np.isfinite(v.reshape(T, -1)).all(axis=1))
+            try:
+                badf = _nonfinite_frames(v)
+            except Exception as e:  # noqa: BLE001 - zipfile and zlib raise many kinds on damage
+                what = shorten(str(e).splitlines()[0] if str(e) else type(e).__name__, 100)
+                raise bad(f"array '{k}' cannot be read whole ({what})") from None
             if badf.size:
                 raise bad(f"{k} is not finite at {badf.size} frame(s), first at frame {badf[0]}")
 
+    schedule = _schedule(a, numeric, text, bad)
+    traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
+    stats = _stats(a, numeric, bad)
+    start = _score_start(a, numeric, bad, T, fps)
+    findings = _findings(a, numeric, bad) if "finding_text" in a else []
+    r = Rollout(
+        fps,
+        _mode(a, bad),
+        time,
+        q,
+        tuple(str(n) for n in names),
+        sp,
+        {k: tuple(v) for k, v in schedule.items()},
+        tuple(traces),
+        stats,
+        start,
+        tuple(findings),
+    )
+    return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
+
+
+def _mode(a, bad) -> Mode:
+    """The realization mode of the rollout arrays ``a`` (multitrack if they hold none)."""
+    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
+    if mode_s not in {m.value for m in Mode}:
+        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
+    return Mode(mode_s)
+
+
+def _schedule(a, numeric, text, bad) -> dict[str, list[TrackInterval]]:
+    """The schedule of the rollout arrays ``a`` (empty if it holds none)."""
     schedule: dict[str, list[TrackInterval]] = {}
     if "schedule_track" in a:
         tracks, blocks = text("schedule_track"), text("schedule_block")
@@ -309,7 +378,11 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
             schedule.setdefault(str(track), []).append(
                 TrackInterval(str(track), str(block), float(start), float(end))
             )
-    traces = _traces(a, T, numeric, text, bad) if "residual_names" in a else []
+    return schedule
+
+
+def _stats(a, numeric, bad) -> SolveStats:
+    """The solve statistics of the rollout arrays ``a`` (zero if it holds none)."""
     st = numeric("stats", 1) if "stats" in a else np.zeros(len(_STATS))
     if (
         len(st) != len(_STATS)
@@ -328,29 +401,17 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
         float(st[5]),
         its.astype(np.int64, copy=False) if np.isfinite(its).all() else np.zeros(0, np.int64),
     )
+    return stats
+
+
+def _score_start(a, numeric, bad, T: int, fps: float) -> float:
+    """The rollout time [s] of the score's time 0 (0 in files written before it)."""
     start = numeric("score_start") if "score_start" in a else np.zeros(())
     if start.size != 1 or not (
         np.isfinite(start).all() and 0.0 <= float(start.reshape(())) < T / fps
     ):
         raise bad("score_start must be one time [s] within the rollout")
-    findings = _findings(a, numeric, bad) if "finding_text" in a else []
-    mode_s = str(a["mode"]) if "mode" in a and a["mode"].dtype.kind == "U" else "multitrack"
-    if mode_s not in {m.value for m in Mode}:
-        raise bad(f"mode must be multitrack or flattened, got {shorten(mode_s, 40)!r}")
-    r = Rollout(
-        fps,
-        Mode(mode_s),
-        time,
-        q,
-        tuple(str(n) for n in names),
-        sp,
-        {k: tuple(v) for k, v in schedule.items()},
-        tuple(traces),
-        stats,
-        float(start.reshape(())),
-        tuple(findings),
-    )
-    return _dynamic(r, numeric, text, bad) if "torque_joints" in a else r
+    return float(start.reshape(()))
 
 
 def _findings(a, numeric, bad) -> list[Finding]:

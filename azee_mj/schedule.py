@@ -20,6 +20,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik, natural, reach
 from azee_mj import score as sc
 from azee_mj.anatomy import SignerAnatomy, descends
+from azee_mj.intervals import IntervalIndex
 from azee_mj.kinematics import compile_point, compile_vector
 from azee_mj.model import MODEL_PATH
 from azee_mj.sites import DEFAULT_MAP, SignerMap
@@ -325,6 +326,7 @@ class Schedule:
         self.blocks = [b for b in score.blocks()]
         self.by_path = {b.path: b for b in self.blocks}
         self.contacts = self._contact_windows()
+        self._contact_index: IntervalIndex | None = None
         self._moved_cache: dict = {}
         self.body_names = [
             mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(self.m.nbody)
@@ -349,11 +351,10 @@ class Schedule:
 
     def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
-        pairs = set()
-        for w in self.contacts:
-            if w.start - 1e-9 <= t < w.end:
-                pairs |= {(w.body, w.other), (w.other, w.body)}
-        return frozenset(pairs)
+        if self._contact_index is None:  # (in logarithmic time: asked at every frame)
+            self._contact_index = IntervalIndex((w.start - 1e-9, w.end) for w in self.contacts)
+        ws = [self.contacts[i] for i in self._contact_index.at(t)]
+        return frozenset(p for w in ws for p in ((w.body, w.other), (w.other, w.body)))
 
     def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
         """What each constraint of a cstr block drives, in order."""

@@ -276,8 +276,7 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
     def bad(what: str) -> InputFileError:
         return InputFileError(f"{path}: {what}")
 
-    missing = [k for k in REQUIRED if k not in a]
-    if missing:
+    if missing := [k for k in REQUIRED if k not in a]:
         raise bad(f"missing array(s) {', '.join(missing)}; a rollout holds {', '.join(REQUIRED)}")
 
     def get(k: str) -> np.ndarray:

@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import threading
 import zipfile
+import zlib
 from collections.abc import Iterator
 
 import mujoco
 import numpy as np
+
+from azee_mj.errors import InputFileError
 
 #: Frames per block (about 5 MB of site positions for the bundled signer).
 BLOCK = 1024
@@ -137,11 +140,14 @@ class NpzFrames(Frames):
                 self._file = (zf, zf.open(self.name))
             f = self._file[1]
             # sequential reads continue where the last ended; a seek back re-reads the member
-            f.seek(self.offset + start * self._row)
             n = (stop - start) * self._row
-            raw = f.read(n)
+            try:
+                f.seek(self.offset + start * self._row)
+                raw = f.read(n)
+            except (zipfile.BadZipFile, zlib.error, EOFError) as e:
+                raise InputFileError(f"{self.path}: not a rollout .npz file, or damaged ({e})")
         if len(raw) != n:
-            raise OSError(f"{self.path}: array {self.name!r} ends before frame {stop}")
+            raise InputFileError(f"{self.path}: array {self.name!r} ends before frame {stop}")
         return np.frombuffer(raw, self.dtype).reshape((stop - start, *self.shape[1:])).copy()
 
     def close(self) -> None:

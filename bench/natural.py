@@ -490,13 +490,18 @@ class Measure:
         return float(np.linalg.norm(pos_l[:n] - mirrored, axis=-1).max())
 
 
+def held_frame(ro) -> int:
+    """The frame of the held contact (``HELD_T`` on the score's clock, after the lead-in)."""
+    return round((HELD_T + ro.score_start) * FPS)
+
+
 def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict, object]:
     score = load_score(contact_score(contact, side))
     t0 = time.perf_counter()
     ro = realize(score, fps=FPS, solver=solver)
     wall = time.perf_counter() - t0
     touch = [t for t in ro.traces if t.block.endswith("TOUCH")]
-    held = round((HELD_T + ro.score_start) * FPS)  # after the lead-in from rest
+    held = held_frame(ro)
     site, at = (_resolve(x, side) for x in contact[4:6])
     pairs = [meas.contact_pair(*(_resolve(x, side) for x in p)) for p in places(contact)]
     clock = ro.time - ro.score_start  # the score's clock (the lead-in from rest comes first)
@@ -786,7 +791,7 @@ def main(argv=None) -> int:
         mir = meas.mirror_error(ro_r.site_pos, ro_l.site_pos) * 1e3
         rr["mirror_mm"] = rl["mirror_mm"] = mir
         (beyond_recs if c in beyond else held_recs if c in held_out else ours).extend((rr, rl))
-        postures[c[0]] = ro_r.qpos[round(HELD_T * FPS)]
+        postures[c[0]] = ro_r.qpos[held_frame(ro_r)]
         by_name[c[0]] = rr
         print(
             f"{c[0]}: R {rr['residual_mm']:.2f} mm, L {rl['residual_mm']:.2f} mm, "

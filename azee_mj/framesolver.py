@@ -193,13 +193,12 @@ class FrameSolver:
             q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
         return q
 
-    def held(self, keys, tracks, t: float, keys_at=None) -> tuple[list, set[str]]:
+    def held(self, keys, tracks, t: float, keys_at) -> tuple[list, set[str]]:
         """The constraints the keys of blending ``tracks`` hold at time ``t`` [s], and the
-        joints they free (``keys_at``: :func:`key_index` of ``keys``, made if not given).
+        joints they free (``keys_at``: :func:`key_index` of ``keys``).
         While blending, a key's constraints hold to its end, but for the joint targets
         (hand shapes) the posture the blend heads for does not keep: those joints are the
         blend's to move."""
-        keys_at = key_index(keys) if keys_at is None else keys_at
         cons, free = [], set()
         for tr in sorted(tracks):  # sorted: the same rows in any process
             i = keys_at[tr].first_at(t)

@@ -464,9 +464,9 @@ def contact_pairs(
         score = sc.load_score(score)
     r = Schedule(score, solver or make_solver())
     out: dict[int, set[tuple[str, str]]] = {}
+    fps = (len(times) - 1) / times[-1] if len(times) > 1 and times[-1] > 0 else 1.0
+    lead = round(score_start * fps)
     for w in r.contacts:
-        fps = (len(times) - 1) / times[-1] if len(times) > 1 and times[-1] > 0 else 1.0
-        lead = round(score_start * fps)
         for f in frame_range(w.start, w.end, fps, len(times) - lead):
             f += lead
             out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))

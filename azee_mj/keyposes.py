@@ -81,7 +81,10 @@ class Unfaced:
 
 def violation(res: ik.IKResult) -> float:
     """How far a result is from its tolerances (sum of value / tol over the violated)."""
-    return sum(r.value / r.tol for r in res.residuals if not r.ok) + res.penetration / 1e-3
+    return (
+        sum(r.value / r.tol for r in res.residuals if not r.ok)
+        + res.penetration / cn.PENETRATION_LIMIT
+    )
 
 
 def components(track_sets: list[set[str]]) -> list[set[str]]:

@@ -162,7 +162,7 @@ def realize(
     site_pos = site_positions(solver, smap, q)
     tick(1.0)
     rt = np.arange(len(times)) / fps
-    shift = lead / fps
+    shift = motion.score_start
     intervals = shifted(own.intervals(), shift)
     found = findings_of(solver, own, rt, q, site_pos, smap, intervals, shift, traces)
     stats = solve_stats(adapter.results, n_key, _time.perf_counter() - t_start)

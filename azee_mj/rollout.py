@@ -217,12 +217,12 @@ def constraint_traces(
     for b in schedule.blocks:
         if b.kind is not sc.BlockKind.CSTR or (blocks is not None and b.path not in blocks):
             continue
+        span = frame_range(b.start, b.end, fps, len(times) - lead_frames)
+        frames = range(span.start + lead_frames, span.stop + lead_frames)
         for c in b.constraints:
             ic = comp.constraint(c, f"{b.path}#{c.index}")
-            if ic is None:
-                continue
-            span = frame_range(b.start, b.end, fps, len(times) - lead_frames)
-            items.append((b, c, ic, range(span.start + lead_frames, span.stop + lead_frames)))
+            if ic is not None:
+                items.append((b, c, ic, frames))
     values = residuals(schedule.solver, q, [(ic, span) for _, _, ic, span in items])
     return tuple(
         ConstraintTrace(

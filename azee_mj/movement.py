@@ -174,9 +174,3 @@ def movements(pos: np.ndarray, fs: float) -> list[Movement]:
             )
         )
     return out
-
-
-def minimum_jerk(t: np.ndarray) -> np.ndarray:
-    """The minimum-jerk progress ``10 t^3 - 15 t^4 + 6 t^5`` of normalised time ``t`` in [0, 1]."""
-    t = np.clip(np.asarray(t, float), 0.0, 1.0)
-    return t**3 * (10.0 + t * (-15.0 + 6.0 * t))

@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 
 from azee_mj import movement as mv
+from azee_mj.blend import minjerk
 
 FS = 200.0
 
 
 def reach(distance: float, duration: float) -> np.ndarray:
     t = np.linspace(0.0, duration, round(duration * FS) + 1)
-    x = distance * mv.minimum_jerk(t / duration)
+    x = distance * minjerk(t / duration)
     return np.c_[x, np.zeros_like(x), np.zeros_like(x)]
 
 

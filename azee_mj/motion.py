@@ -46,6 +46,7 @@ from azee_mj.framesolver import (
     transpath,
 )
 from azee_mj.ikadapter import IKAdapter
+from azee_mj.intervals import IntervalIndex
 from azee_mj.routes import arc_through, path_points
 from azee_mj.schedule import FLAT_FIXED, Mode
 from azee_mj.timing import frame_count, frame_range
@@ -246,9 +247,10 @@ class Motion:
             cons = [(dc.con, dc.tracks) for dc in sched.block_constraints(b) if dc.con is not None]
             if cons and len(r):
                 spans.append((r.start + self.lead_frames, r.stop + self.lead_frames, cons))
+        spans_at = IntervalIndex((f0, f1) for f0, f1, _ in spans)  # not every block per frame
         out: dict[int, list] = {}
         for f in range(n):
-            now = [c for f0, f1, cons in spans if f0 <= f < f1 for c in cons]
+            now = [c for i in spans_at.at(f) for c in spans[i][2]]
             if not now:
                 continue
             k = self.adapter.at(q[f])

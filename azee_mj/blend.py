@@ -142,6 +142,14 @@ def holds_of(keys: list[Key], dofs: np.ndarray) -> list[Hold]:
     return holds
 
 
+def after_carried(w0: float, w1: float, carried) -> float:
+    """A blend's start ``w0`` [s] moved no earlier than the last end before ``w1`` of a
+    key of another track this one carries (``carried``, end times), but never so late the
+    blend is shorter than ``MIN_BLEND`` (a carried hold may end as this one starts)."""
+    pins = [e for e in carried if e < w1 + EPS]
+    return max(w0, min(max(pins), w1 - MIN_BLEND)) if pins else w0
+
+
 def blend_window(
     hold: Hold, prev: Hold | None, prev_q: np.ndarray, flattened: bool, carried=()
 ) -> tuple[float, float]:
@@ -178,9 +186,7 @@ def blend_window(
             w0 = max(prev_start, w1 - fastest)
     else:  # no gap: blend at the end of the previous hold
         w0, w1 = max(prev_start, a - need), a
-    pins = [e for e in carried if e < w1 + EPS]
-    if pins:  # never shorter than MIN_BLEND: a carried hold may end as this starts
-        w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
+    w0 = after_carried(w0, w1, carried)
     if w1 - w0 < fastest and not at_start and hold.shape_only:
         w1 = min(b, w0 + fastest)  # still too fast: finish a shape change late
     return w0, w1
@@ -208,9 +214,8 @@ def track_curve(
     for hold in holds:
         if prev is None and rest is not None:
             w0, w1 = hold.start - (rest.lead or 0.0), hold.start
-            pins = [e for e in carried if e < w1 + EPS]
-            if pins and w1 > w0:  # no earlier than a carried hold ends, as any blend
-                w0 = max(w0, min(max(pins), w1 - MIN_BLEND))
+            if w1 > w0:  # no earlier than a carried hold ends, as any blend
+                w0 = after_carried(w0, w1, carried)
         else:
             w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
         _blend(out, blending, times, w0, w1, prev_q, hold.q)

@@ -117,9 +117,9 @@ class Motion:
         n = frame_count(self.end + self.score_start, self.fps)
         return (np.arange(n) - self.lead_frames) / self.fps
 
-    def plan(self, keys: dict[str, list[Key]]) -> None:
+    def plan(self, keys: dict[str, list[Key]], carried: dict[str, list[float]]) -> None:
         """Each track's lead-in and return to rest (:attr:`rests`), and the time axis they
-        need (:attr:`lead_frames`, :attr:`end`)."""
+        need (:attr:`lead_frames`, :attr:`end`); ``carried``: :meth:`carried` of ``keys``."""
         sched = self.schedule
         self.rests, self.lead_frames, self.end = {}, 0, sched.score.duration
         if self.mode is not Mode.MULTITRACK:
@@ -136,7 +136,7 @@ class Motion:
             r = Rest(self.move_time(t, None, first.q, MIN_LEAD))
             home = sched.home[sched.track_dofs[t]]
             if not np.allclose(last.q, home, atol=SAME_POSTURE):
-                after = [e for e in self.carried(t, keys) if e > last.end]
+                after = [e for e in carried[t] if e > last.end]
                 at = max([last.end + self.hold, *after])
                 r = Rest(r.lead, at, self.move_time(t, last.q, None, MIN_RELAX))
                 end = max(end, at + r.relax)
@@ -179,7 +179,8 @@ class Motion:
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
         """(T, nq) frames through the key postures ``keys`` (per track), on :meth:`times`."""
         sched = self.schedule
-        self.plan(keys)
+        carried = self.carried(keys)
+        self.plan(keys, carried)
         times = self.times()
         q = np.tile(sched.home, (len(times), 1))
         names = list(sched.track_joints)
@@ -187,24 +188,25 @@ class Motion:
         flattened = self.mode is Mode.FLATTENED
         for ti, t in enumerate(names):
             d = sched.track_dofs[t]
-            carried = self.carried(t, keys)
             q[:, d], moving[:, ti] = track_curve(
-                keys[t], times, d, sched.home, flattened, carried, self.rests.get(t)
+                keys[t], times, d, sched.home, flattened, carried[t], self.rests.get(t)
             )
         if flattened:
             return self.flat_transpaths(q, times)
         return FrameSolver(self.adapter, self.fps).solve(q, times, moving, names, keys)
 
-    def carried(self, track: str, keys: dict[str, list[Key]]) -> list[float]:
-        """End times [s] of other tracks' keys with a constraint that names a body this
-        track moves (a hand held in front of the chin is carried by the head track)."""
-        return sorted(
-            k.end
-            for t, tk in keys.items()
-            if t != track
-            for k in tk
-            if any(track in self.schedule.moved_by(c) for c in k.cons)
-        )
+    def carried(self, keys: dict[str, list[Key]]) -> dict[str, list[float]]:
+        """Per track, the end times [s] of other tracks' keys with a constraint that names
+        a body the track moves (a hand held in front of the chin is carried by the head
+        track), sorted: each key's carriers found once for every track."""
+        out: dict[str, list[float]] = {t: [] for t in keys}
+        for t, tk in keys.items():
+            for k in tk:
+                moved = set().union(*(self.schedule.moved_by(c) for c in k.cons))
+                for tr in moved - {t}:
+                    if tr in out:
+                        out[tr].append(k.end)
+        return {t: sorted(v) for t, v in out.items()}
 
     def flat_transpaths(self, q: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Flattened mode: a transpath adds keyframes along its path (the 2018 method),

@@ -127,17 +127,15 @@ class GroupPoser:
         hand; of the face, only the joints that move it count: its jaw moves the chin, its
         brows and lids do not): nothing needs to move."""
         prev = [keys[t][-1] for t in group if keys[t] and abs(keys[t][-1].end - t0) < EPS]
+        if len(prev) != len(group) or not set(cons) <= set().union(*(k.cons for k in prev)):
+            return False  # (before the carriers: most segments change their constraints)
         carriers = set().union(*(self.schedule.moved_by(c) for c in cons)) - group
         moving = set().union(*(self.schedule.moving_dofs(c) for c in cons))
         dofs = [
             [d for d in self.schedule.track_dofs[t] if t != "face" or d in moving]
             for t in sorted(carriers)
         ]
-        return (
-            len(prev) == len(group)
-            and set(cons) <= set().union(*(k.cons for k in prev))
-            and all(np.allclose(state[d], prev[0].q[d], atol=SAME_POSTURE) for d in dofs)
-        )
+        return all(np.allclose(state[d], prev[0].q[d], atol=SAME_POSTURE) for d in dofs)
 
     def solve(
         self,
@@ -164,7 +162,7 @@ class GroupPoser:
         cons = self.constraints(mine)
         joints = self.schedule.track_joints
         free = tuple(j for t in sorted(group) if t not in held for j in joints[t])
-        if self.unchanged(group, cons, state, keys, t0) and reuse:
+        if reuse and self.unchanged(group, cons, state, keys, t0):
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
             return GroupSolve(kept, tuple(cons), free)
         q0 = state.copy()

@@ -129,9 +129,15 @@ class BlendCurve:
         raise IndexError(f"frame {x} of the blend is no longer kept (now at frame {self.f})")
 
 
-def key_index(keys: dict[str, list[Key]]) -> dict[str, IntervalIndex]:
-    """Per track, the interval index of its keys' spans."""
-    return {tr: IntervalIndex((k.start, k.end) for k in ks) for tr, ks in keys.items()}
+class KeyIndex:
+    """Per track, which of its ``keys`` holds a time (an interval index of their spans),
+    and what a key holds while its track blends (:meth:`FrameSolver.held`), worked out
+    once per key rather than at every frame."""
+
+    def __init__(self, keys: dict[str, list[Key]]):
+        self.keys = keys
+        self.spans = {tr: IntervalIndex((k.start, k.end) for k in ks) for tr, ks in keys.items()}
+        self.kept: dict[tuple[str, int], list] = {}
 
 
 class FrameSolver:
@@ -175,12 +181,12 @@ class FrameSolver:
         self._reach = np.cumsum(steps)
         # what holds a frame, in logarithmic time: not by asking every path and key
         paths_at = IntervalIndex((p.block.start, p.block.end) for p in paths)
-        keys_at = key_index(keys)
+        keys_at = KeyIndex(keys)
         for f, t in enumerate(times):
             self.step = float(steps[f])
             curve.advance(f)
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
-            cons, free = self.held(keys, tracks, t, keys_at)
+            cons, free = self.held(tracks, t, keys_at)
             for p in (paths[j] for j in paths_at.at(t)):
                 if p.limbs & tracks:
                     cons.append(p.place(f))
@@ -193,23 +199,25 @@ class FrameSolver:
             q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
         return q
 
-    def held(self, keys, tracks, t: float, keys_at) -> tuple[list, set[str]]:
-        """The constraints the keys of blending ``tracks`` hold at time ``t`` [s], and the
-        joints they free (``keys_at``: :func:`key_index` of ``keys``).
-        While blending, a key's constraints hold to its end, but for the joint targets
-        (hand shapes) the posture the blend heads for does not keep: those joints are the
-        blend's to move."""
+    def held(self, tracks, t: float, keys_at: KeyIndex) -> tuple[list, set[str]]:
+        """The constraints the keys (``keys_at``) of blending ``tracks`` hold at time ``t``
+        [s], and the joints they free. While blending, a key's constraints hold to its
+        end, but for the joint targets (hand shapes) the posture the blend heads for does
+        not keep: those joints are the blend's to move."""
         cons, free = [], set()
         for tr in sorted(tracks):  # sorted: the same rows in any process
-            i = keys_at[tr].first_at(t)
+            i = keys_at.spans[tr].first_at(t)
             if i is None:
                 continue
-            key, goal = keys[tr][i], goal_key(keys[tr], i, self.schedule.track_dofs[tr])
-            keep = [
-                c
-                for c in key.cons
-                if goal is None or c in goal.cons or not isinstance(c, cn.JointTarget)
-            ]
+            key = keys_at.keys[tr][i]
+            keep = keys_at.kept.get((tr, i))
+            if keep is None:
+                goal = goal_key(keys_at.keys[tr], i, self.schedule.track_dofs[tr])
+                keep = keys_at.kept[tr, i] = [
+                    c
+                    for c in key.cons
+                    if goal is None or c in goal.cons or not isinstance(c, cn.JointTarget)
+                ]
             cons += [c for c in keep if c not in cons]
             free |= set(key.free)
         return cons, free
@@ -340,10 +348,10 @@ class FrameSolver:
         constraints with every constraint the keys of their tracks hold then, from the
         frame itself and nearest it (in place). Returns how many frames were solved."""
         joints, ad = self.schedule.track_joints, self.adapter
-        keys_at = key_index(keys)
+        keys_at = KeyIndex(keys)
         for f, missed in sorted(misses.items()):
             tracks = set().union(*(tr for _, tr in missed))
-            cons, free = self.held(keys, tracks, times[f], keys_at)
+            cons, free = self.held(tracks, times[f], keys_at)
             cons += [c for c, _ in missed if c not in cons]
             free = sorted(free | {j for tr in tracks for j in joints[tr]})
             near = (self.curve_preference(q[f], free),)

@@ -68,8 +68,10 @@ class IKAdapter:
         return self.solver.at(q, jacobians)
 
     def penetrates(self, q: np.ndarray, t: float) -> bool:
-        """Whether posture ``q`` penetrates beyond the limit, but for the body pairs the
-        contacts of time ``t`` [s] bring together."""
+        """Whether posture ``q`` penetrates deeper than ``COLLISION_TOL`` (0.1 mm, where a
+        collision row reaches 1; a solve converges within the looser
+        ``PENETRATION_LIMIT``), but for the body pairs the contacts of time ``t`` [s]
+        bring together."""
         k = self.solver.at(q)
         allowed = self.schedule.allowed_at(t)
         return cn.penetration_depth(k.m, k.d, allowed) > cn.COLLISION_TOL

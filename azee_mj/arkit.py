@@ -195,12 +195,15 @@ BOTH = {
 SIDE_SUFFIX = {"L": "Left", "R": "Right"}
 
 
-def side_changes(changes: dict[str, float], side: str) -> dict[str, float]:
-    """A sided shape's changes on ``side`` (``"R"`` or ``"L"``), with concrete joint names."""
+def side_changes(
+    changes: Mapping[str, float], side: str, flipped: frozenset[str] = FLIPPED
+) -> dict[str, float]:
+    """A sided shape's changes on ``side`` (``"R"`` or ``"L"``), with concrete joint names
+    (the joints of ``flipped`` change the other way on the left)."""
     other = "L" if side == "R" else "R"
     out: dict[str, float] = {}
     for j, v in changes.items():
-        if side == "L" and j in FLIPPED:
+        if side == "L" and j in flipped:
             v = -v
         name = j.format(X=side, Y=other)
         out[name] = out.get(name, 0.0) + v

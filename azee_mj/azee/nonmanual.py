@@ -50,7 +50,7 @@ def _both(**w: float) -> dict[str, float]:
     out = {}
     for name, v in w.items():
         if name in arkit.PAIRS:
-            out[name + "Left"] = out[name + "Right"] = v
+            out.update({name + suffix: v for suffix in arkit.SIDE_SUFFIX.values()})
         else:
             out[name] = v
     return out

@@ -36,7 +36,6 @@ NAMED_DIRECTIONS: Mapping[str, tuple[float, float, float]] = MappingProxyType(
     }
 )
 _SIDE_WORD = {"R": "right", "L": "left"}
-_MAX_LISTED = 8
 
 # ---------------------------------------------------------------------------------------
 # Closed sets

@@ -195,12 +195,15 @@ BOTH = {
 SIDE_SUFFIX = {"L": "Left", "R": "Right"}
 
 
-def side_changes(changes: dict[str, float], side: str) -> dict[str, float]:
-    """A sided shape's changes on ``side`` (``"R"`` or ``"L"``), with concrete joint names."""
+def side_changes(
+    changes: Mapping[str, float], side: str, flipped: frozenset[str] = FLIPPED
+) -> dict[str, float]:
+    """A sided shape's changes on ``side`` (``"R"`` or ``"L"``), with concrete joint names
+    (the joints of ``flipped`` change the other way on the left)."""
     other = "L" if side == "R" else "R"
     out: dict[str, float] = {}
     for j, v in changes.items():
-        if side == "L" and j in FLIPPED:
+        if side == "L" and j in flipped:
             v = -v
         name = j.format(X=side, Y=other)
         out[name] = out.get(name, 0.0) + v
@@ -226,15 +229,15 @@ def shape_changes() -> dict[str, dict[str, float]]:
 #: and ``eyeBlinkRight``). ``mouthLeft`` / ``mouthRight`` and ``jawLeft`` / ``jawRight`` are
 #: movements toward a side: the same weight on both cancels, so they are not written as one.
 PAIRS: tuple[str, ...] = tuple(
-    n.removesuffix("Left")
+    n.removesuffix(SIDE_SUFFIX["L"])
     for n in ARKIT_SHAPES
-    if n.endswith("Left") and n not in ("mouthLeft", "jawLeft")
+    if n.endswith(SIDE_SUFFIX["L"]) and n not in ("mouthLeft", "jawLeft")
 )
 
 
 def split(name: str) -> tuple[str, str | None]:
     """``("eyeBlink", "L")`` for ``eyeBlinkLeft``; ``(name, None)`` for an unpaired one."""
-    for suffix, side in (("Left", "L"), ("Right", "R")):
+    for side, suffix in SIDE_SUFFIX.items():
         base = name.removesuffix(suffix)
         if base != name and base in PAIRS:
             return base, side
@@ -258,7 +261,7 @@ def constraints(weights: Mapping[str, float], digits: int = 3) -> list[dict]:
         base, side = split(name)
         w = round(float(weights[name]), digits)
         if side is not None:
-            other = base + ("Right" if side == "L" else "Left")
+            other = base + SIDE_SUFFIX["R" if side == "L" else "L"]
             if other in weights and round(float(weights[other]), digits) == w:
                 out.append({"type": "morph", "id": base, "weight": w})
                 done.add(other)

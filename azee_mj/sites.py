@@ -180,9 +180,8 @@ class Morph:
             return dict(self.changes)
         out: dict[str, float] = {}
         for s in SIDES if side is None else (side,):
-            for j, v in self.changes.items():
-                name = j.format(X=s, Y=other_side(s))
-                out[name] = out.get(name, 0.0) + (-v if s == "L" and j in self.flipped else v)
+            for name, v in arkit.side_changes(self.changes, s, self.flipped).items():
+                out[name] = out.get(name, 0.0) + v
         return out
 
 

@@ -50,7 +50,7 @@ def _both(**w: float) -> dict[str, float]:
     out = {}
     for name, v in w.items():
         if name in arkit.PAIRS:
-            out[name + "Left"] = out[name + "Right"] = v
+            out.update({name + suffix: v for suffix in arkit.SIDE_SUFFIX.values()})
         else:
             out[name] = v
     return out
@@ -80,12 +80,16 @@ WH_FACE = _both(browDown=0.7, eyeSquint=0.3)
 YES_NO_TILT, WH_TILT = 0.15, 0.1
 
 
-def _question(face: Mapping[str, float], tilt: float, origin: str):
+def _face_rule(face: Mapping[str, float], tilt: tuple[str, float] | None, origin: str):
+    """A rule laying ``face`` over its sign (:func:`face_blocks`) and, with a ``tilt``
+    ``(axis, k)``, the head toward fwd + k axis: the questions and the corpus expressions."""
+
     def build(ctx, a: dict, head: str) -> ScoreVal:
         tl = Timeline()
         s, e = tl.put("SIG", a["sig"])
         face_blocks(tl, "FACE", s, e, face)
-        tl.cstr("HEAD", s, e, [head_along(along("fwd", ("down", tilt)))])
+        if tilt is not None:
+            tl.cstr("HEAD", s, e, [head_along(along("fwd", tilt))])
         return tl.value(head, origin)
 
     return build
@@ -366,20 +370,6 @@ EXPRESSIONS: dict[str, Expression] = {
 }
 
 
-def _expression(name: str):
-    x = EXPRESSIONS[name]
-
-    def build(ctx, a: dict, head: str) -> ScoreVal:
-        tl = Timeline()
-        s, e = tl.put("SIG", a["sig"])
-        face_blocks(tl, "FACE", s, e, x.face)
-        if x.tilt is not None:
-            tl.cstr("HEAD", s, e, [head_along(along("fwd", x.tilt))])
-        return tl.value(head, name)
-
-    return build
-
-
 def rules(Rule) -> tuple:
     """The non-manual rules as ``Rule`` records (the class is passed in to keep imports one
     way)."""
@@ -392,7 +382,7 @@ def rules(Rule) -> tuple:
             f"and HEAD (head fwd+{YES_NO_TILT} down: forward tilt) over it",
             "ASL [BSC80]",
             "LSF assumed alike; weights and tilt guessed",
-            _question(YES_NO_FACE, YES_NO_TILT, "yes-no-question"),
+            _face_rule(YES_NO_FACE, ("down", YES_NO_TILT), "yes-no-question"),
             aliases=("yn-q",),
         ),
         Rule(
@@ -401,7 +391,7 @@ def rules(Rule) -> tuple:
             f"SIG with FACE (browDown 0.7, eyeSquint 0.3) and HEAD (head fwd+{WH_TILT} down)",
             "ASL [BSC80]",
             "LSF assumed alike; weights and tilt guessed",
-            _question(WH_FACE, WH_TILT, "wh-question"),
+            _face_rule(WH_FACE, ("down", WH_TILT), "wh-question"),
             aliases=("wh-q",),
         ),
         Rule(
@@ -442,7 +432,7 @@ def rules(Rule) -> tuple:
                 f"SIG with FACE over it: {x.seen}{tilt}",
                 "[T6] (corpus still and notes)",
                 f"ARKit weights ours from the still: {shapes}",
-                _expression(name),
+                _face_rule(x.face, x.tilt, name),
             )
         )
     return tuple(out)

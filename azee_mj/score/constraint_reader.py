@@ -122,8 +122,8 @@ class ConstraintReader:
 
     def morph(self, loc: Loc, obj: Mapping[str, Any], common: dict[str, Any]) -> MorphC:
         mid = string(loc, "id", obj["id"])
-        ids = list(self.map.morphs)
         if mid not in self.map.morphs:
+            ids = list(self.map.morphs)
             raise loc.fail(
                 f"unknown morph '{mid}'",
                 f"valid ids are {listing(ids)}" + suggest(mid, ids),

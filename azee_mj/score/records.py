@@ -35,8 +35,6 @@ NAMED_DIRECTIONS: Mapping[str, tuple[float, float, float]] = MappingProxyType(
         "down": (0.0, 0.0, -1.0),
     }
 )
-_SIDE_WORD = {"R": "right", "L": "left"}
-_MAX_LISTED = 8
 
 # ---------------------------------------------------------------------------------------
 # Closed sets

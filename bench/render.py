@@ -35,6 +35,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from machine import cpu as cpu_model
 
 from azee_mj import render as rd
 from azee_mj.cli import load_clip
@@ -161,13 +162,8 @@ def gl_renderer() -> str:
 
 
 def machine() -> dict:
-    lines = Path("/proc/cpuinfo").read_text().splitlines()
-    cpu = next(
-        (x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
-        platform.processor(),
-    )
     return {
-        "cpu": cpu,
+        "cpu": cpu_model(),
         "cores": len(os.sched_getaffinity(0)),
         "load_average": os.getloadavg(),
         "python": platform.python_version(),

@@ -32,6 +32,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from machine import cpu as cpu_model
+
 from azee_mj.azee import RULES, Lexicon
 from azee_mj.batch import plan, realize_many, usable_cores
 
@@ -165,12 +167,10 @@ def run(config: str, paths: list[Path], tmp: Path) -> dict:
 
 
 def machine() -> dict:
-    lines = Path("/proc/cpuinfo").read_text().splitlines()
-    cpu = next((x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")), "")
     import mujoco
 
     return {
-        "cpu": cpu or platform.processor(),
+        "cpu": cpu_model(),
         "cores": usable_cores(),
         "load_average": os.getloadavg(),
         "python": platform.python_version(),

@@ -22,13 +22,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
-import platform
 import time
 
 import mujoco
 import numpy as np
+from machine import machine
 
 from azee_mj.check import check_poses
 from azee_mj.model import load_model
@@ -54,25 +53,6 @@ PUBLISHED = {
     "bien": [("later Blender version (issue 6)", None, 1.03, "n/a")],
     "armoire": [("later Blender version (issue 6)", None, 8.6, "n/a")],
 }
-
-
-def machine() -> dict:
-    cpu = platform.processor() or ""
-    try:
-        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "python": platform.python_version(),
-        "mujoco": mujoco.__version__,
-        "numpy": np.__version__,
-        "platform": platform.platform(),
-    }
 
 
 def undriven_motion(rollout, schedule, solver) -> float:

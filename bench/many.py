@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import machine
 import mujoco
 
 from azee_mj.batch import plan, realize_many, usable_cores
@@ -61,13 +62,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "many.json"))
     args = ap.parse_args()
-    lines = Path("/proc/cpuinfo").read_text().splitlines()
-    cpu = next(
-        (x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
-        platform.processor(),
-    )
     info = {
-        "cpu": cpu,
+        "cpu": machine.cpu(),
         "cores": usable_cores(),
         "load_average_before": os.getloadavg(),
         "python": platform.python_version(),

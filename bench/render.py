@@ -35,6 +35,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from machine import cpu as cpu_model
 
 from azee_mj import render as rd
 from azee_mj.cli import load_clip
@@ -43,10 +44,24 @@ ROOT = Path(__file__).resolve().parent.parent
 SIZE = (640, 480)
 
 
-def render_before(clip, out: Path) -> None:
-    """The MP4 loop and scene settings of the package before issue 11, for comparison."""
+def mp4_writer(out: Path, fps: float, **extra):
+    """The imageio H.264 writer both earlier settings used, with ``extra`` options."""
     import imageio.v2 as imageio
 
+    return imageio.get_writer(
+        out,
+        format="FFMPEG",
+        fps=fps,
+        codec="libx264",
+        quality=7,
+        macro_block_size=2,
+        ffmpeg_log_level="error",
+        **extra,
+    )
+
+
+def render_before(clip, out: Path) -> None:
+    """The MP4 loop and scene settings of the package before issue 11, for comparison."""
     w, h = SIZE
     m = mujoco.MjModel.from_xml_path(str(rd.SCENE_PATH))
     m.vis.global_.offwidth, m.vis.global_.offheight = (
@@ -57,15 +72,7 @@ def render_before(clip, out: Path) -> None:
     d = mujoco.MjData(m)
     cam = rd.camera_id(m, "front")
     with mujoco.Renderer(m, height=h, width=w) as r:
-        writer = imageio.get_writer(
-            out,
-            format="FFMPEG",
-            fps=clip.fps,
-            codec="libx264",
-            quality=7,
-            macro_block_size=2,
-            ffmpeg_log_level="error",
-        )
+        writer = mp4_writer(out, clip.fps)
         try:
             for q in clip.qpos:
                 d.qpos[:] = q
@@ -79,24 +86,13 @@ def render_before(clip, out: Path) -> None:
 def render_msaa(clip, out: Path) -> None:
     """The default of the package before supersampling and render workers: 4x
     multisampling, one process, frames rendered into reused buffers and encoded in a thread."""
-    import imageio.v2 as imageio
-
     w, h = SIZE
     m = rd.scene_model(w, h)  # 4x multisampling
     d = mujoco.MjData(m)
     cam = rd.camera_id(m, "front")
     with mujoco.Renderer(m, height=h, width=w) as r:
         r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-        writer = imageio.get_writer(
-            out,
-            format="FFMPEG",
-            fps=clip.fps,
-            codec="libx264",
-            quality=7,
-            macro_block_size=2,
-            ffmpeg_log_level="error",
-            output_params=["-preset", "veryfast"],
-        )
+        writer = mp4_writer(out, clip.fps, output_params=["-preset", "veryfast"])
         with rd.Encoder(writer.append_data, (h, w, 3), close=writer.close) as enc:
             for q in clip.qpos:
                 d.qpos[:] = q
@@ -161,13 +157,8 @@ def gl_renderer() -> str:
 
 
 def machine() -> dict:
-    lines = Path("/proc/cpuinfo").read_text().splitlines()
-    cpu = next(
-        (x.split(":", 1)[1].strip() for x in lines if x.startswith("model name")),
-        platform.processor(),
-    )
     return {
-        "cpu": cpu,
+        "cpu": cpu_model(),
         "cores": len(os.sched_getaffinity(0)),
         "load_average": os.getloadavg(),
         "python": platform.python_version(),

@@ -12,6 +12,9 @@ import shutil
 import subprocess
 import tempfile
 import time
+from collections.abc import Iterator
+
+import pytest
 
 #: Executables tried, in order (Debian's package is ``chromium``).
 EXECUTABLES = ("chromium", "chromium-browser", "google-chrome")
@@ -28,6 +31,22 @@ FLAGS = (
     "--use-angle=swiftshader",
     "--mute-audio",
 )
+
+
+#: The web player has loaded and drawn two frames since (a screenshot then shows the loaded
+#: signer): the ``ready`` expression for :meth:`Chromium.open`.
+READY = "window.azeePlayer && azeePlayer.ready && azeePlayer.frames > azeePlayer.readyFrame + 2"
+
+
+def launched(size: tuple[int, int]) -> Iterator[Chromium]:
+    """A browser whose page is ``size`` pixels, for a fixture to ``yield from`` (closed after
+    its last test); skips the tests when no Chromium is installed."""
+    exe = find_chromium()
+    if exe is None:
+        pytest.skip("no chromium here (Debian: apt-get install chromium)")
+    b = Chromium(exe, size=size)
+    yield b
+    b.close()
 
 
 def find_chromium() -> str | None:

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from scores import cstr, envelope, sync
 
 from azee_mj import blinks
 from azee_mj.cli import main
@@ -17,28 +18,11 @@ from azee_mj.timeline import realize
 
 
 def _score(duration: float, children=()) -> dict:
-    return {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "S",
-            "kind": "sync",
-            "start": 0,
-            "end": duration,
-            "children": list(children),
-        },
-    }
+    return envelope(sync("S", duration, *children))
 
 
 def _morph(name, start, end, mid, weight=1.0):
-    return {
-        "name": name,
-        "kind": "cstr",
-        "start": start,
-        "end": end,
-        "constraints": [{"type": "morph", "id": mid, "weight": weight}],
-    }
+    return cstr(name, start, end, {"type": "morph", "id": mid, "weight": weight})
 
 
 def _blink_blocks(score):

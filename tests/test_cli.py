@@ -157,6 +157,11 @@ def _same_rollout(a, b):
     assert a.read_bytes() == b.read_bytes()
 
 
+def _realize(*args) -> int:
+    """``azee-mj realize`` with ``args`` (paths and numbers written as text)."""
+    return main(["realize", *map(str, args)])
+
+
 def _dirs(tmp_path, *names):
     out = [tmp_path / n for n in names]
     for d in out:
@@ -170,23 +175,7 @@ def test_realize_many_scores_in_parallel_matches_each_alone(tmp_path, capsys):
     for s in scores:
         assert main(["realize", str(s), "-o", str(alone / f"{s.stem}.npz"), "--fps", "25"]) == 0
     capsys.readouterr()
-    assert (
-        main(
-            [
-                "realize",
-                *map(str, scores),
-                "-o",
-                f"{out}/",
-                "--fps",
-                "25",
-                "--jobs",
-                "2",
-                "--report",
-                str(reports),
-            ]
-        )
-        == 0
-    )
+    assert _realize(*scores, "-o", f"{out}/", "--fps", 25, "--jobs", 2, "--report", reports) == 0
     text = capsys.readouterr().out
     assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
     for s in scores:
@@ -200,23 +189,8 @@ def test_realize_many_scores_in_parallel_matches_each_alone(tmp_path, capsys):
 def test_realize_many_reports_each_bad_score_and_finishes_the_others(tmp_path, capsys):
     bad = _bad_score(tmp_path)
     (out,) = _dirs(tmp_path, "out")
-    assert (
-        main(
-            [
-                "realize",
-                str(DATA / "good.json"),
-                str(bad),
-                str(DATA / "kinds.json"),
-                "-o",
-                str(out),
-                "--fps",
-                "25",
-                "--jobs",
-                "2",
-            ]
-        )
-        == 1
-    )
+    three = (DATA / "good.json", bad, DATA / "kinds.json")
+    assert _realize(*three, "-o", out, "--fps", 25, "--jobs", 2) == 1
     captured = capsys.readouterr()
     first, summary, failed = captured.err.splitlines()
     assert first == (
@@ -256,61 +230,17 @@ def test_realize_many_compiles_expressions_with_the_lexicon(tmp_path, capsys):
     src.write_text(":hello\n")
     single = tmp_path / "x.npz"
     assert main(["realize", str(src), "-o", str(single), "--fps", "10", "--lexicon", str(lex)]) == 0
-    assert (
-        main(
-            [
-                "realize",
-                str(src),
-                str(DATA / "good.json"),
-                "-o",
-                str(out),
-                "--fps",
-                "10",
-                "--lexicon",
-                str(lex),
-                "--jobs",
-                "2",
-            ]
-        )
-        == 0
-    )
+    both = (src, DATA / "good.json", "-o", out)
+    assert _realize(*both, "--fps", 10, "--lexicon", lex, "--jobs", 2) == 0
     _same_rollout(single, out / "x.npz")
     capsys.readouterr()
     # Without the lexicon the sign is unknown: that expression fails, naming its file.
-    assert (
-        main(
-            [
-                "realize",
-                str(src),
-                str(DATA / "good.json"),
-                "-o",
-                str(out),
-                "--fps",
-                "10",
-                "--jobs",
-                "1",
-            ]
-        )
-        == 1
-    )
+    assert _realize(*both, "--fps", 10, "--jobs", 1) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"azee-mj: error: {src}:1:1: ") and "hello" in err
     assert err.count("\n") == 3 and err.endswith(f"azee-mj: failed: {src}\n")
     missing = tmp_path / "nope"
-    assert (
-        main(
-            [
-                "realize",
-                str(src),
-                str(DATA / "good.json"),
-                "-o",
-                str(out),
-                "--lexicon",
-                str(missing),
-            ]
-        )
-        == 2
-    )
+    assert _realize(*both, "--lexicon", missing) == 2
     assert capsys.readouterr().err == (
         f"azee-mj: error: {missing}: not a directory of signs (--lexicon)\n"
     )

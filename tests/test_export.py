@@ -12,6 +12,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from headless_chromium import READY, launched
 
 from azee_mj import arkit
 from azee_mj.azee import compile_text
@@ -554,14 +555,7 @@ def test_the_player_page_is_self_contained(realized, tmp_path):
 
 @pytest.fixture(scope="module")
 def browser():
-    from headless_chromium import Chromium, find_chromium
-
-    exe = find_chromium()
-    if exe is None:
-        pytest.skip("no chromium here (Debian: apt-get install chromium)")
-    b = Chromium(exe, size=(640, 480))
-    yield b
-    b.close()
+    yield from launched((640, 480))
 
 
 @pytest.fixture(scope="module")
@@ -571,10 +565,6 @@ def page(realized, tmp_path_factory) -> Path:
 
 def _url(page: Path, query: str) -> str:
     return page.resolve().as_uri() + "?" + query
-
-
-#: Loaded, and two frames drawn since (a screenshot then shows the loaded signer).
-READY = "window.azeePlayer && azeePlayer.ready && azeePlayer.frames > azeePlayer.readyFrame + 2"
 
 
 @pytest.mark.extra("export")

@@ -38,6 +38,8 @@ def _w(row: np.ndarray) -> dict[str, float]:
 
 def test_arkit_names_are_52_in_live_link_order_with_18_pairs():
     assert len(arkit.ARKIT_SHAPES) == len(set(arkit.ARKIT_SHAPES)) == 52
+    # Written out on purpose: the published order of ARKit's list (its first seven, the left
+    # eye), which the package's own tuple must keep.
     assert arkit.ARKIT_SHAPES[:7] == (
         "eyeBlinkLeft",
         "eyeLookDownLeft",

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from headless_chromium import READY, launched
 
 from azee_mj.cli import main
 from azee_mj.errors import AzeeError, InputFileError
@@ -105,17 +106,7 @@ def test_non_finite_block_times_are_refused(model, tmp_path):
 
 @pytest.fixture(scope="module")
 def browser():
-    from headless_chromium import Chromium, find_chromium
-
-    exe = find_chromium()
-    if exe is None:
-        pytest.skip("no chromium here (Debian: apt-get install chromium)")
-    b = Chromium(exe, size=(480, 360))
-    yield b
-    b.close()
-
-
-READY = "window.azeePlayer && azeePlayer.ready && azeePlayer.frames > azeePlayer.readyFrame + 2"
+    yield from launched((480, 360))
 
 
 def test_the_player_runs_and_nothing_injected_runs(model, tmp_path, browser):

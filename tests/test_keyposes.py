@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scores import cstr, envelope, shaped
 
 from azee_mj import ik
 from azee_mj.ikadapter import IKAdapter
@@ -13,19 +14,7 @@ from azee_mj.score import load_score
 
 
 def _score(constraints, end=0.5):
-    return load_score(
-        {
-            "format": "azee-score",
-            "version": 1,
-            "root": {
-                "name": "K",
-                "kind": "cstr",
-                "start": 0.0,
-                "end": end,
-                "constraints": constraints,
-            },
-        }
-    )
+    return load_score(envelope(cstr("K", 0.0, end, *constraints)))
 
 
 def test_components_join_the_track_sets_that_share_a_track():
@@ -121,22 +110,7 @@ def test_joined_hands_with_an_oriented_palm_start_turned_as_asked(solver):
         {"type": "place", "site": "@H_EDGE(s)", "at": "@PA(w)"},
         {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "up"},
     ]
-    score = load_score(
-        {
-            "format": "azee-score",
-            "version": 1,
-            "root": {
-                "name": "C",
-                "kind": "sync",
-                "start": 0.0,
-                "end": 0.8,
-                "children": [
-                    {"name": "S", "kind": "cstr", "start": 0.0, "end": 0.8, "constraints": [flat]},
-                    {"name": "T", "kind": "cstr", "start": 0.4, "end": 0.8, "constraints": touch},
-                ],
-            },
-        }
-    )
+    score = load_score(shaped([flat], 0.4, 0.8, *touch, names=("C", "S", "T")))
     poser = KeyPoser(IKAdapter(Schedule(score, solver)), Mode.MULTITRACK)
     keys = poser.key_postures()
     assert poser.reasons == {}

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scores import cstr, envelope, sync
 
 from azee_mj import movement as mv
 from azee_mj import timeline
@@ -81,33 +82,9 @@ def _beside(side: str) -> dict:
 
 
 def test_a_hand_with_no_further_block_relaxes(solver):
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "S",
-            "kind": "sync",
-            "start": 0,
-            "end": 3.0,
-            "children": [
-                {
-                    "name": "WEAK",
-                    "kind": "cstr",
-                    "start": 0.2,
-                    "end": 0.6,
-                    "constraints": [{"type": "place", "site": "@WR(w)", "at": _beside("lat(w)")}],
-                },
-                {
-                    "name": "STRONG",
-                    "kind": "cstr",
-                    "start": 0.2,
-                    "end": 3.0,
-                    "constraints": [{"type": "place", "site": "@WR(s)", "at": _beside("lat(s)")}],
-                },
-            ],
-        },
-    }
+    weak = {"type": "place", "site": "@WR(w)", "at": _beside("lat(w)")}
+    strong = {"type": "place", "site": "@WR(s)", "at": _beside("lat(s)")}
+    score = envelope(sync("S", 3.0, cstr("WEAK", 0.2, 0.6, weak), cstr("STRONG", 0.2, 3.0, strong)))
     r = timeline.realize(score, solver=solver)
     arm = [solver.model.jnt_qposadr[solver.joint_id(j)] for j in DEFAULT_MAP.tracks["arm_L"]]
     at = round((r.score_start + 2.9) * r.fps)  # the strong hand still signs: the weak rests

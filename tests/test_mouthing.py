@@ -11,6 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from scores import cstr, envelope, sync
 
 from azee_mj import arkit, mouthing
 from azee_mj import face as face_mod
@@ -260,25 +261,9 @@ def test_a_mouthed_sentence_realizes_within_human_speed(model):
 
 
 def _face_score(mid: str, weight: float) -> dict:
-    return {
-        "format": "azee-score",
-        "version": 1,
-        "root": {
-            "name": "S",
-            "kind": "sync",
-            "start": 0,
-            "end": 1,
-            "children": [
-                {
-                    "name": "FACE",
-                    "kind": "cstr",
-                    "start": 0,
-                    "end": 1,
-                    "constraints": [{"type": "morph", "id": mid, "weight": weight}],
-                }
-            ],
-        },
-    }
+    return envelope(
+        sync("S", 1, cstr("FACE", 0, 1, {"type": "morph", "id": mid, "weight": weight}))
+    )
 
 
 def test_an_arkit_weight_out_of_range_or_an_unknown_shape_is_one_message():

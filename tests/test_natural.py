@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scores import cstr, envelope, shaped, sync
 
 from azee_mj import constraints as cn
 from azee_mj import ergonomics, ik, mirror, natural, reach, timeline
@@ -144,70 +145,21 @@ INDEX_SHAPE = [
 
 
 def test_the_hand_goes_to_the_face_not_the_face_to_the_hand(solver):
-    rollout = timeline.realize(
-        {
-            "format": "azee-score",
-            "version": 1,
-            "strong_side": "R",
-            "root": {
-                "name": "C",
-                "kind": "sync",
-                "start": 0,
-                "end": 1.0,
-                "children": [
-                    {
-                        "name": "HS",
-                        "kind": "cstr",
-                        "start": 0,
-                        "end": 1.0,
-                        "constraints": INDEX_SHAPE,
-                    },
-                    {
-                        "name": "K",
-                        "kind": "cstr",
-                        "start": 0.4,
-                        "end": 1.0,
-                        "constraints": [{"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"}],
-                    },
-                ],
-            },
-        },
-        solver=solver,
-    )
+    score = shaped(INDEX_SHAPE, 0.4, 1.0, {"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"})
+    rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     head_and_trunk = [solver.joint_id(j) for t in ("head", "spine") for j in DEFAULT_MAP.tracks[t]]
     assert np.abs(rollout.qpos[:, head_and_trunk]).max() == 0.0
 
 
+#: The wrist 0.45 m in front of the signing space: out of the arm's reach alone.
+_FAR_WRIST = {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [0.45, 0, 0]}}
+
+
 def test_recruited_trunk_returns_to_neutral(solver):
     # Out of the arm's reach alone: the trunk leans to help, then straightens once the
     # block has ended.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "R",
-            "kind": "sync",
-            "start": 0,
-            "end": 2.0,
-            "children": [
-                {
-                    "name": "FAR",
-                    "kind": "cstr",
-                    "start": 0.3,
-                    "end": 0.8,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@WR(s)",
-                            "at": {"translate": "^ssp", "by": [0.45, 0, 0]},
-                        }
-                    ],
-                }
-            ],
-        },
-    }
+    score = envelope(sync("R", 2.0, cstr("FAR", 0.3, 0.8, _FAR_WRIST)))
     rollout = timeline.realize(score, solver=solver)
     spine = [solver.joint_id(j) for j in DEFAULT_MAP.tracks["spine"]]
     assert all(t.ok for t in rollout.traces)
@@ -218,32 +170,7 @@ def test_recruited_trunk_returns_to_neutral(solver):
 def test_a_recruited_trunk_leans_no_further_than_the_arm_needs(solver):
     # The wrist 0.45 m in front of the signing space: the trunk must lean. Held at 85 % of
     # the lean the realizer keeps (toward neutral), the arm alone no longer reaches.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "R",
-            "kind": "sync",
-            "start": 0,
-            "end": 1.0,
-            "children": [
-                {
-                    "name": "FAR",
-                    "kind": "cstr",
-                    "start": 0.3,
-                    "end": 0.8,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@WR(s)",
-                            "at": {"translate": "^ssp", "by": [0.45, 0, 0]},
-                        }
-                    ],
-                }
-            ],
-        },
-    }
+    score = envelope(sync("R", 1.0, cstr("FAR", 0.3, 0.8, _FAR_WRIST)))
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     key = rollout.qpos[np.argmin(np.abs(rollout.time - rollout.score_start - 0.5))]
@@ -263,51 +190,29 @@ def test_a_look_turns_the_head_only_as_far_as_the_gaze_needs_when_the_trunk_help
     # palm exactly down: the arm alone cannot (the index is straight, the line falls 13.9
     # degrees, the wrist deviates 30 degrees at most), so the trunk helps the arm; the look at
     # ^Rssp (12 degrees of head alone) is then solved on the moved trunk, not carried along.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "P",
-            "kind": "sync",
-            "start": 0,
-            "end": 0.8,
-            "children": [
-                {"name": "HS", "kind": "cstr", "start": 0, "end": 0.8, "constraints": INDEX_SHAPE},
-                {
-                    "name": "IX",
-                    "kind": "cstr",
-                    "start": 0.35,
-                    "end": 0.8,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@I_TIP(s)",
-                            "at": {
-                                "translate": {"mid": ["@ST(s)", "^Rssp"]},
-                                "by": {"scale": "fwd", "by": 0.05},
-                            },
-                        },
-                        {
-                            "type": "orient",
-                            "bone": "!index(s,1)",
-                            "axis": "dir",
-                            "rel": "along",
-                            "vector": {"from": "@ST(s)", "to": "^Rssp"},
-                        },
-                        {
-                            "type": "orient",
-                            "bone": "!palm(s)",
-                            "axis": "nrm",
-                            "rel": "along",
-                            "vector": "down",
-                        },
-                        {"type": "look", "at": "^Rssp"},
-                    ],
-                },
-            ],
+    score = shaped(
+        INDEX_SHAPE,
+        0.35,
+        0.8,
+        {
+            "type": "place",
+            "site": "@I_TIP(s)",
+            "at": {
+                "translate": {"mid": ["@ST(s)", "^Rssp"]},
+                "by": {"scale": "fwd", "by": 0.05},
+            },
         },
-    }
+        {
+            "type": "orient",
+            "bone": "!index(s,1)",
+            "axis": "dir",
+            "rel": "along",
+            "vector": {"from": "@ST(s)", "to": "^Rssp"},
+        },
+        {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along", "vector": "down"},
+        {"type": "look", "at": "^Rssp"},
+        names=("P", "HS", "IX"),
+    )
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     tilt = [ergonomics.ergonomics(solver.model, q) for q in rollout.qpos]
@@ -494,33 +399,19 @@ def test_left_handed_signing_is_the_mirror_of_right_handed(solver):
 def test_mirror_of_a_score_swaps_sides_and_reflects(solver):
     from azee_mj.score import load_score
 
-    s = load_score(
-        {
-            "format": "azee-score",
-            "version": 1,
-            "strong_side": "L",
-            "root": {
-                "name": "A",
-                "kind": "cstr",
-                "start": 0,
-                "end": 1,
-                "constraints": [
-                    {
-                        "type": "place",
-                        "site": "@I_TIP(s)",
-                        "at": {"translate": "^ssp", "by": [0.1, 0.2, 0.3]},
-                    },
-                    {
-                        "type": "orient",
-                        "bone": "!palm(w)",
-                        "axis": "nrm",
-                        "rel": "along",
-                        "vector": {"cross": ["lat(s)", "up"]},
-                    },
-                ],
-            },
-        }
-    )
+    tip = {
+        "type": "place",
+        "site": "@I_TIP(s)",
+        "at": {"translate": "^ssp", "by": [0.1, 0.2, 0.3]},
+    }
+    palm = {
+        "type": "orient",
+        "bone": "!palm(w)",
+        "axis": "nrm",
+        "rel": "along",
+        "vector": {"cross": ["lat(s)", "up"]},
+    }
+    s = load_score(envelope(cstr("A", 0, 1, tip, palm), strong_side="L"))
     m = mirror.mirror_score(s)
     assert m.strong_side == "R"
     place, orient = m.root.constraints
@@ -532,54 +423,25 @@ def test_mirror_of_a_score_swaps_sides_and_reflects(solver):
     assert mirror.mirror_score(mirror.mirror_score(m)).root.constraints[0] == place
 
 
-_UNREACHABLE = {
-    "format": "azee-score",
-    "version": 1,
-    "strong_side": "R",
-    "root": {
-        "name": "R",
-        "kind": "sync",
-        "start": 0,
-        "end": 1.0,
-        "children": [
-            {
-                "name": "FAR",
-                "kind": "cstr",
-                "start": 0.3,
-                "end": 0.8,
-                "constraints": [
-                    {
-                        "type": "place",
-                        "site": "@WR(s)",
-                        "at": {"translate": "^ssp", "by": [1.2, 0, 0]},
-                    }
-                ],
-            },
-            {
-                "name": "TWO",
-                "kind": "cstr",
-                "start": 0.3,
-                "end": 0.8,
-                "constraints": [
-                    {
-                        "type": "orient",
-                        "bone": "!head",
-                        "axis": "nrm",
-                        "rel": "along",
-                        "vector": "left",
-                    },
-                    {
-                        "type": "orient",
-                        "bone": "!head",
-                        "axis": "nrm",
-                        "rel": "along",
-                        "vector": "right",
-                    },
-                ],
-            },
-        ],
-    },
-}
+_UNREACHABLE = envelope(
+    sync(
+        "R",
+        1.0,
+        cstr(
+            "FAR",
+            0.3,
+            0.8,
+            {"type": "place", "site": "@WR(s)", "at": {"translate": "^ssp", "by": [1.2, 0, 0]}},
+        ),
+        cstr(
+            "TWO",
+            0.3,
+            0.8,
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "left"},
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": "right"},
+        ),
+    )
+)
 
 
 def test_a_miss_says_why(solver):
@@ -599,33 +461,8 @@ def test_a_miss_says_why(solver):
 def test_a_collision_names_what_would_pass_through(solver):
     # The back of the fist on the front of the belly: its edge stops on the belly, and face
     # to face the forearm would have to pass through it.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "C",
-            "kind": "sync",
-            "start": 0,
-            "end": 0.8,
-            "children": [
-                {
-                    "name": "HS",
-                    "kind": "cstr",
-                    "start": 0,
-                    "end": 0.8,
-                    "constraints": [{"type": "morph", "id": "fist", "weight": 1, "side": "s"}],
-                },
-                {
-                    "name": "K",
-                    "kind": "cstr",
-                    "start": 0.4,
-                    "end": 0.8,
-                    "constraints": [{"type": "place", "site": "@H_BACK(s)", "at": "@AB(s)"}],
-                },
-            ],
-        },
-    }
+    shape = [{"type": "morph", "id": "fist", "weight": 1, "side": "s"}]
+    score = shaped(shape, 0.4, 0.8, {"type": "place", "site": "@H_BACK(s)", "at": "@AB(s)"})
     trace = next(t for t in timeline.realize(score, solver=solver).traces if t.block == "C.K")
     assert not trace.ok
     assert trace.reason == (
@@ -637,26 +474,15 @@ def test_a_collision_names_what_would_pass_through(solver):
 
 def test_a_joint_limit_is_named(solver):
     # The face turned straight back: the neck, head and trunk rotations all end at limits.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "L",
-            "kind": "cstr",
-            "start": 0,
-            "end": 0.5,
-            "constraints": [
-                {
-                    "type": "orient",
-                    "bone": "!head",
-                    "axis": "nrm",
-                    "rel": "along",
-                    "vector": {"add": ["back", {"scale": "left", "by": 0.2}]},
-                }
-            ],
-        },
-    }
+    back = {"add": ["back", {"scale": "left", "by": 0.2}]}
+    score = envelope(
+        cstr(
+            "L",
+            0,
+            0.5,
+            {"type": "orient", "bone": "!head", "axis": "nrm", "rel": "along", "vector": back},
+        )
+    )
     (trace,) = timeline.realize(score, solver=solver).traces
     assert not trace.ok
     assert trace.reason.startswith("stopped by the upper limit of joint ")
@@ -688,33 +514,8 @@ def test_the_bundled_signer_mirrors(solver):
 def test_a_blend_pushed_out_of_the_body_stays_under_25_rad_per_s(solver):
     # The flat palm to the other elbow: the blend from rest passes through the body and is
     # pushed out frame by frame, each frame within a step of the one before.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "C",
-            "kind": "sync",
-            "start": 0,
-            "end": 0.8,
-            "children": [
-                {
-                    "name": "HS",
-                    "kind": "cstr",
-                    "start": 0,
-                    "end": 0.8,
-                    "constraints": [{"type": "morph", "id": "flat", "weight": 1, "side": "s"}],
-                },
-                {
-                    "name": "K",
-                    "kind": "cstr",
-                    "start": 0.4,
-                    "end": 0.8,
-                    "constraints": [{"type": "place", "site": "@PA(s)", "at": "@EL(w)"}],
-                },
-            ],
-        },
-    }
+    shape = [{"type": "morph", "id": "flat", "weight": 1, "side": "s"}]
+    score = shaped(shape, 0.4, 0.8, {"type": "place", "site": "@PA(s)", "at": "@EL(w)"})
     rollout = timeline.realize(score, solver=solver)
     assert all(t.ok for t in rollout.traces)
     assert np.abs(np.diff(rollout.qpos, axis=0)).max() * rollout.fps <= 25.0

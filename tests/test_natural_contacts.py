@@ -10,6 +10,7 @@ five of the six (``bench/results/natural-previous.json``).
 import mujoco
 import numpy as np
 import pytest
+from scores import shaped
 
 from azee_mj.ergonomics import ergonomics
 from azee_mj.timeline import realize
@@ -26,33 +27,8 @@ def contact_score(site, at, strong, weak=None):
     morphs += [
         {"type": "morph", "id": k, "weight": v, "side": "w"} for k, v in (weak or {}).items()
     ]
-    return {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "C",
-            "kind": "sync",
-            "start": 0.0,
-            "end": HOLD[1],
-            "children": [
-                {
-                    "name": "SHAPE",
-                    "kind": "cstr",
-                    "start": 0.0,
-                    "end": HOLD[1],
-                    "constraints": morphs,
-                },
-                {
-                    "name": "TOUCH",
-                    "kind": "cstr",
-                    "start": HOLD[0],
-                    "end": HOLD[1],
-                    "constraints": [{"type": "place", "site": site, "at": at}],
-                },
-            ],
-        },
-    }
+    place = {"type": "place", "site": site, "at": at}
+    return shaped(morphs, *HOLD, place, names=("C", "SHAPE", "TOUCH"))
 
 
 CASES = [

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scores import cstr, envelope, sync
 
 from azee_mj import ik
 from azee_mj.rollout import constraint_traces, site_positions, solve_stats
@@ -16,30 +17,9 @@ TARGET = [0.3, -0.15, 1.2]
 
 @pytest.fixture(scope="module")
 def schedule(solver) -> Schedule:
-    score = load_score(
-        {
-            "format": "azee-score",
-            "version": 1,
-            "root": {
-                "name": "S",
-                "kind": "sync",
-                "start": 0.0,
-                "end": 0.4,
-                "children": [
-                    {
-                        "name": "R",
-                        "kind": "cstr",
-                        "start": 0.1,
-                        "end": 0.3,
-                        "constraints": [
-                            {"type": "place", "site": "@I_TIP(s)", "at": TARGET},
-                            {"type": "morph", "id": "flat", "side": "s", "weight": 1.0},
-                        ],
-                    }
-                ],
-            },
-        }
-    )
+    tip = {"type": "place", "site": "@I_TIP(s)", "at": TARGET}
+    flat = {"type": "morph", "id": "flat", "side": "s", "weight": 1.0}
+    score = load_score(envelope(sync("S", 0.4, cstr("R", 0.1, 0.3, tip, flat), start=0.0)))
     return Schedule(score, solver)
 
 

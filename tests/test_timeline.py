@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scores import cstr, envelope, sync
 
 from azee_mj import timeline
 from azee_mj.check import check_poses
@@ -177,65 +178,49 @@ def test_hold_keeps_what_the_block_reached(kinds, solver):
 
 
 def _two_track_score():
-    return {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "TWO",
-            "kind": "sync",
-            "start": 0,
-            "end": 2.0,
-            "children": [
+    return envelope(
+        sync(
+            "TWO",
+            2.0,
+            cstr(
+                "STILL",
+                0,
+                2.0,
                 {
-                    "name": "STILL",
-                    "kind": "cstr",
-                    "start": 0,
-                    "end": 2.0,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@PA(w)",
-                            "at": {"translate": "^ssp", "by": [0, 0.1, -0.05]},
-                        },
-                        {
-                            "type": "orient",
-                            "bone": "!palm(w)",
-                            "axis": "nrm",
-                            "rel": "along",
-                            "vector": "up",
-                        },
-                    ],
+                    "type": "place",
+                    "site": "@PA(w)",
+                    "at": {"translate": "^ssp", "by": [0, 0.1, -0.05]},
                 },
                 {
-                    "name": "K1",
-                    "kind": "cstr",
-                    "start": 0.2,
-                    "end": 0.6,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@I_TIP(s)",
-                            "at": {"translate": "^Rssp", "by": [0, 0, 0.2]},
-                        }
-                    ],
+                    "type": "orient",
+                    "bone": "!palm(w)",
+                    "axis": "nrm",
+                    "rel": "along",
+                    "vector": "up",
                 },
+            ),
+            cstr(
+                "K1",
+                0.2,
+                0.6,
                 {
-                    "name": "K2",
-                    "kind": "cstr",
-                    "start": 1.2,
-                    "end": 1.6,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@I_TIP(s)",
-                            "at": {"translate": "^ssp", "by": [0, -0.05, 0.25]},
-                        }
-                    ],
+                    "type": "place",
+                    "site": "@I_TIP(s)",
+                    "at": {"translate": "^Rssp", "by": [0, 0, 0.2]},
                 },
-            ],
-        },
-    }
+            ),
+            cstr(
+                "K2",
+                1.2,
+                1.6,
+                {
+                    "type": "place",
+                    "site": "@I_TIP(s)",
+                    "at": {"translate": "^ssp", "by": [0, -0.05, 0.25]},
+                },
+            ),
+        )
+    )
 
 
 def test_one_hand_moves_while_the_other_holds_still(solver):
@@ -256,41 +241,23 @@ def test_placement_relative_to_the_other_hand_moves_both_hands(solver):
     # are one problem, and their index tips may touch; the forehead-relative point of the
     # weak tip does not move the head.
     beside = {"translate": "@I_TIP(w)", "by": {"scale": "lat(s)", "by": 0.0136}}
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "TOP",
-            "kind": "cstr",
-            "start": 0,
-            "end": 0.6,
-            "constraints": [
-                {"type": "morph", "id": "flat", "weight": 1.0, "side": "s"},
-                {"type": "morph", "id": "flat", "weight": 1.0, "side": "w"},
-                {
-                    "type": "place",
-                    "site": "@I_TIP(w)",
-                    "at": {"translate": "@FH", "by": {"scale": "fwd", "by": 0.2}},
-                },
-                {"type": "place", "site": "@I_TIP(s)", "at": beside},
-                {
-                    "type": "orient",
-                    "bone": "!palm(s)",
-                    "axis": "nrm",
-                    "rel": "along",
-                    "vector": "down",
-                },
-                {
-                    "type": "orient",
-                    "bone": "!palm(w)",
-                    "axis": "nrm",
-                    "rel": "along",
-                    "vector": "down",
-                },
-            ],
-        },
-    }
+    score = envelope(
+        cstr(
+            "TOP",
+            0,
+            0.6,
+            {"type": "morph", "id": "flat", "weight": 1.0, "side": "s"},
+            {"type": "morph", "id": "flat", "weight": 1.0, "side": "w"},
+            {
+                "type": "place",
+                "site": "@I_TIP(w)",
+                "at": {"translate": "@FH", "by": {"scale": "fwd", "by": 0.2}},
+            },
+            {"type": "place", "site": "@I_TIP(s)", "at": beside},
+            {"type": "orient", "bone": "!palm(s)", "axis": "nrm", "rel": "along", "vector": "down"},
+            {"type": "orient", "bone": "!palm(w)", "axis": "nrm", "rel": "along", "vector": "down"},
+        )
+    )
     rollout = timeline.realize(score, solver=solver)
     tracks = {k for k, v in rollout.schedule.items() if v}
     assert {"arm_R", "arm_L", "hand_R", "hand_L"} <= tracks and "head" not in tracks
@@ -324,47 +291,22 @@ def _in_hand(m, body: int, palm: str) -> bool:
 def test_the_head_waits_for_a_hand_held_at_the_chin(solver):
     # The thumb tip holds in front of the chin until 1.0 s and the head turns right from
     # 1.1 s: the head's blend, which would start 0.6 s ahead, waits for the hold to end.
-    score = {
-        "format": "azee-score",
-        "version": 1,
-        "strong_side": "R",
-        "root": {
-            "name": "S",
-            "kind": "sync",
-            "start": 0,
-            "end": 1.6,
-            "children": [
-                {
-                    "name": "K",
-                    "kind": "cstr",
-                    "start": 0.2,
-                    "end": 1.0,
-                    "constraints": [
-                        {
-                            "type": "place",
-                            "site": "@T_TIP(s)",
-                            "at": {"translate": "@CH", "by": {"scale": "fwd", "by": 0.06}},
-                        }
-                    ],
-                },
-                {
-                    "name": "TURN",
-                    "kind": "cstr",
-                    "start": 1.1,
-                    "end": 1.6,
-                    "constraints": [
-                        {
-                            "type": "orient",
-                            "bone": "!head",
-                            "axis": "nrm",
-                            "rel": "along",
-                            "vector": [1.0, -0.6, 0.0],
-                        }
-                    ],
-                },
-            ],
-        },
+    at_chin = {"translate": "@CH", "by": {"scale": "fwd", "by": 0.06}}
+    turn = {
+        "type": "orient",
+        "bone": "!head",
+        "axis": "nrm",
+        "rel": "along",
+        "vector": [1.0, -0.6, 0.0],
     }
+    score = envelope(
+        sync(
+            "S",
+            1.6,
+            cstr("K", 0.2, 1.0, {"type": "place", "site": "@T_TIP(s)", "at": at_chin}),
+            cstr("TURN", 1.1, 1.6, turn),
+        )
+    )
     rollout = timeline.realize(score, solver=solver)
     head = _dofs(solver, "head")
     held, turn = _frames(rollout, 0.0, 1.0), _frames(rollout, 1.0, 1.1)

@@ -163,6 +163,7 @@ static int core_copy(Core* s, Py_buffer* B) {
         pairs (npair*2 int32: the geom pairs to collide, in order), clusters (ngeom int32:
         each geom's cluster, -1 for none)) */
 static int Core_init(Core* s, PyObject* args, PyObject* kw) {
+  (void)kw;
   unsigned long long ma, da;
   PyObject *owner, *cb, *o[9], *orr, *oJ;
   if (s->m) return PyErr_SetString(PyExc_RuntimeError, "Core: initialised already"), -1;
@@ -210,6 +211,7 @@ static PyObject* as_list(const double* x, int n) {
 
 /* rows(): the raw rows of the known blocks (and the callback's) on the posture in data. */
 static PyObject* Core_rows(Core* s, PyObject* noargs) {
+  (void)noargs;
   if (raw_rows(s)) return NULL;
   Py_RETURN_NONE;
 }
@@ -361,6 +363,7 @@ cleanup:
 /* natural() -> (r bytes, J bytes (rows, nfree)): the naturalness rows on the posture in
    data (after mj_kinematics and mj_comPos). */
 static PyObject* Core_natural(Core* s, PyObject* noargs) {
+  (void)noargs;
   int nrn = s->ne + s->nfree + s->npref;
   double* r = malloc(sizeof(double) * (nrn + 1));
   double* J = malloc(sizeof(double) * (nrn + 1) * (s->nfree + 1));
@@ -377,6 +380,7 @@ static PyObject* Core_natural(Core* s, PyObject* noargs) {
 /* effort(model_addr, data_addr, edof int32, anc uint8 (nv*nv), cols int32)
      -> (tau bytes (ne,), J bytes (ne, ncols)) */
 static PyObject* mod_effort(PyObject* self, PyObject* args) {
+  (void)self;
   unsigned long long ma, da;
   PyObject *o[3], *out = NULL;
   if (!PyArg_ParseTuple(args, "KKOOO", &ma, &da, o, o + 1, o + 2)) return NULL;
@@ -419,6 +423,7 @@ static PyObject* record(Py_ssize_t size, PyObject* const* fields, int n) {
 }
 
 static PyObject* mod_layout(PyObject* self, PyObject* noargs) {
+  (void)self, (void)noargs;
   PyObject* block[] = {FIELD(Block, kind),  FIELD(Block, start), FIELD(Block, k),
                        FIELD(Block, hard),  FIELD(Block, perp),  FIELD(Block, id),
                        FIELD(Block, id2),   FIELD(Block, dof),   FIELD(Block, t0),
@@ -473,8 +478,9 @@ static PyMethodDef mod_methods[] = {
      "layout() -> {record: (sizeof, {field: offsetof})} of Block, Term and Tunables."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef moddef = {PyModuleDef_HEAD_INIT, "_ikcore",
-                                    "The posture solver's inner loop in C.", -1, mod_methods};
+static struct PyModuleDef moddef = {PyModuleDef_HEAD_INIT, .m_name = "_ikcore",
+                                    .m_doc = "The posture solver's inner loop in C.",
+                                    .m_size = -1, .m_methods = mod_methods};
 
 PyMODINIT_FUNC PyInit__ikcore(void) {
   if (PyType_Ready(&CoreType) < 0) return NULL;

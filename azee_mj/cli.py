@@ -239,7 +239,7 @@ def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
-    _motion(args)
+    motion = _motion(args)
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
     if len(args.score) > 1 or os.path.isdir(args.score[0]) or _dir_like(args.output):
@@ -247,7 +247,7 @@ def _cmd_realize(args, run: _Run) -> int:
             raise AzeeError("--dynamics realizes one score at a time (give one SCORE and OUT.npz)")
         if args.blinks is not None:
             raise AzeeError("--blinks: give one score (automatic blinks are per score)")
-        return _realize_many(args)
+        return _realize_many(args, motion)
     if args.resume or args.manifest or args.scheduler:
         raise AzeeError("--resume, --manifest and --scheduler are for several scores (-o DIR/)")
     if args.dynamics and args.mode != "multitrack":
@@ -267,7 +267,7 @@ def _cmd_realize(args, run: _Run) -> int:
             mode=args.mode,
             solver=solver,
             progress=_Progress("realize"),
-            **_motion(args),
+            **motion,
         )
     save_rollout(args.output, rollout, inputs=(path,))
     if args.report:
@@ -328,9 +328,10 @@ def _dir_like(path: str) -> bool:
     return path.endswith(("/", os.sep))
 
 
-def _realize_many(args) -> int:
+def _realize_many(args, motion: dict) -> int:
     """Several scores (or directories of them) to ``-o DIR/``: in a process pool (one
-    process per core, or ``--jobs``), or on a Dask cluster (``--scheduler``).
+    process per core, or ``--jobs``), or on a Dask cluster (``--scheduler``), with the
+    checked motion options ``motion`` (:func:`_motion`).
 
     Everything is checked before any score is realized: the output (and ``--report``)
     directories exist and are writable, no two scores write the same file, no output is an
@@ -378,7 +379,7 @@ def _realize_many(args) -> int:
             client=client,
             manifest=args.manifest,
             resume_run=args.resume,
-            motion=_motion(args),
+            motion=motion,
         )
     if not all(o.ok for o in outcomes):
         return EXIT_FINDINGS

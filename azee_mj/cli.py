@@ -63,13 +63,17 @@ def _outputs(
     """The one output check of every writing command, before any work: each output path
     given (e.g. ``--output``, ``--report``) must be writable and differ from every input
     path given and from every sign file of the ``lexicon`` directories (see
-    :func:`azee_mj.files.check_output`)."""
-    from azee_mj.files import check_output
+    :func:`azee_mj.files.check_output`); with ``directory`` each is a directory that must
+    exist (one rule with realize: :func:`azee_mj.files.check_output_dir`)."""
+    from azee_mj.files import check_output, check_output_dir
 
     given = [p for p in inputs if p] + _lexicon_files(lexicon)
     paths = [p for p in outputs if p]
     for p in paths:
-        check_output(p, given, directory=directory)
+        if directory:
+            check_output_dir(p)
+        else:
+            check_output(p, given)
     real = [os.path.realpath(p) for p in paths]
     if len(set(real)) < len(real):
         raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
@@ -444,10 +448,6 @@ def _cmd_report(args, run: _Run) -> int:
 
     fps = check_fps(args.fps)
     as_dir = _dir_like(args.output) or os.path.isdir(args.output)
-    if as_dir:  # one rule with realize: a directory output must exist
-        from azee_mj.files import check_output_dir
-
-        check_output_dir(args.output)
     _outputs((args.output,), (args.score,), args.lexicon, directory=as_dir)
     paths = write_report(
         run.score_path(args.score, args.lexicon),

@@ -163,6 +163,7 @@ static int core_copy(Core* s, Py_buffer* B) {
         pairs (npair*2 int32: the geom pairs to collide, in order), clusters (ngeom int32:
         each geom's cluster, -1 for none)) */
 static int Core_init(Core* s, PyObject* args, PyObject* kw) {
+  (void)kw;
   unsigned long long ma, da;
   PyObject *owner, *cb, *o[9], *orr, *oJ;
   if (s->m) return PyErr_SetString(PyExc_RuntimeError, "Core: initialised already"), -1;
@@ -210,6 +211,7 @@ static PyObject* as_list(const double* x, int n) {
 
 /* rows(): the raw rows of the known blocks (and the callback's) on the posture in data. */
 static PyObject* Core_rows(Core* s, PyObject* noargs) {
+  (void)noargs;
   if (raw_rows(s)) return NULL;
   Py_RETURN_NONE;
 }
@@ -252,6 +254,30 @@ static PyObject* run_result(const double* q, int nq, const RunOut* o, int lm) {
   return Py_BuildValue("(NdiNi)", as_bytes(q, nq), o->cost, o->it, hist, (int)o->stop);
 }
 
+/* A run's inputs: buffers B[0..nb) from o (B[0] the posture q, nq doubles), a copy of q for
+   the run to move and room in r for nhist history entries. Returns the copy, or NULL with a
+   Python error set; run_end then frees what was taken. */
+static double* run_start(PyObject* const* o, Py_buffer* B, int nb, const char* const* what,
+                         const Py_ssize_t* size, const Py_ssize_t* count, int nhist, RunOut* r) {
+  for (int i = 0; i < nb; i++)
+    if (get_buf(o[i], B + i, size[i], count[i], what[i], 0)) return NULL;
+  double* q = copy_of(B[0].buf, B[0].len);
+  r->hist = malloc(sizeof(double) * (nhist > 0 ? nhist : 1));
+  if (!q || !r->hist) {
+    free(q);
+    PyErr_NoMemory();
+    return NULL;
+  }
+  return q;
+}
+
+static PyObject* run_end(PyObject* out, double* q, RunOut* r, Py_buffer* B, int nb) {
+  free(q);
+  free(r->hist);
+  for (int i = 0; i < nb; i++) release(B + i);
+  return out;
+}
+
 /* lm(q, lo, hi, w, nat, posture, stop, max_iter, collide, early=True)
      -> (q bytes, cost, done, iterations, met, history list, stop)
    One Levenberg-Marquardt run; see lm_run and Solver._lm. */
@@ -262,25 +288,16 @@ static PyObject* Core_lm(Core* s, PyObject* args) {
                         &a.max_iter, &a.collide, &a.early))
     return NULL;
   int n = s->nfree, nq = s->m->nq;
-  static const char* what[5] = {"q", "lo", "hi", "w", "nat"};
+  static const char* const what[5] = {"q", "lo", "hi", "w", "nat"};
+  Py_ssize_t size[5] = {8, 8, 8, 8, 8}, count[5] = {nq, n, n, n, n};
   Py_buffer B[5] = {{0}};
   RunOut r = {0};
-  double* q = NULL;
-  for (int i = 0; i < 5; i++)
-    if (get_buf(o[i], B + i, 8, i ? n : nq, what[i], 0)) goto cleanup;
-  a.lo = B[1].buf, a.hi = B[2].buf, a.w = B[3].buf, a.nat = B[4].buf;
-  q = copy_of(B[0].buf, B[0].len);
-  r.hist = malloc(sizeof(double) * (a.max_iter > 0 ? a.max_iter : 1));
-  if (!q || !r.hist) {
-    PyErr_NoMemory();
-    goto cleanup;
+  double* q = run_start(o, B, 5, what, size, count, a.max_iter, &r);
+  if (q) {
+    a.lo = B[1].buf, a.hi = B[2].buf, a.w = B[3].buf, a.nat = B[4].buf;
+    if (!lm_run(s, &a, q, &r)) out = run_result(q, nq, &r, 1);
   }
-  if (!lm_run(s, &a, q, &r)) out = run_result(q, nq, &r, 1);
-cleanup:
-  free(q);
-  free(r.hist);
-  for (int i = 0; i < 5; i++) release(B + i);
-  return out;
+  return run_end(out, q, &r, B, 5);
 }
 
 /* polish(q, lo, hi, mov (int32, indices into free), stop, collide)
@@ -291,26 +308,16 @@ static PyObject* Core_polish(Core* s, PyObject* args) {
   PolishArgs a = {0};
   if (!PyArg_ParseTuple(args, "OOOOdp", o, o + 1, o + 2, o + 3, &a.stop, &a.collide)) return NULL;
   int n = s->nfree, nq = s->m->nq;
-  static const char* what[4] = {"q", "lo", "hi", "mov"};
+  static const char* const what[4] = {"q", "lo", "hi", "mov"};
   Py_ssize_t size[4] = {8, 8, 8, 4}, count[4] = {nq, n, n, -1};
   Py_buffer B[4] = {{0}};
   RunOut r = {0};
-  double* q = NULL;
-  for (int i = 0; i < 4; i++)
-    if (get_buf(o[i], B + i, size[i], count[i], what[i], 0)) goto cleanup;
-  a.lo = B[1].buf, a.hi = B[2].buf, a.mov = B[3].buf, a.nm = (int)(B[3].len / 4);
-  q = copy_of(B[0].buf, B[0].len);
-  r.hist = malloc(sizeof(double) * (s->tun.natural_iter > 0 ? s->tun.natural_iter : 1));
-  if (!q || !r.hist) {
-    PyErr_NoMemory();
-    goto cleanup;
+  double* q = run_start(o, B, 4, what, size, count, s->tun.natural_iter, &r);
+  if (q) {
+    a.lo = B[1].buf, a.hi = B[2].buf, a.mov = B[3].buf, a.nm = (int)(B[3].len / 4);
+    if (!polish_run(s, &a, q, &r)) out = run_result(q, nq, &r, 0);
   }
-  if (!polish_run(s, &a, q, &r)) out = run_result(q, nq, &r, 0);
-cleanup:
-  free(q);
-  free(r.hist);
-  for (int i = 0; i < 4; i++) release(B + i);
-  return out;
+  return run_end(out, q, &r, B, 4);
 }
 
 /* set_natural(edof int32, escale f64, comfort (nv) f64, neutral (nv) f64, anc (nv*nv) uint8,
@@ -356,6 +363,7 @@ cleanup:
 /* natural() -> (r bytes, J bytes (rows, nfree)): the naturalness rows on the posture in
    data (after mj_kinematics and mj_comPos). */
 static PyObject* Core_natural(Core* s, PyObject* noargs) {
+  (void)noargs;
   int nrn = s->ne + s->nfree + s->npref;
   double* r = malloc(sizeof(double) * (nrn + 1));
   double* J = malloc(sizeof(double) * (nrn + 1) * (s->nfree + 1));
@@ -372,6 +380,7 @@ static PyObject* Core_natural(Core* s, PyObject* noargs) {
 /* effort(model_addr, data_addr, edof int32, anc uint8 (nv*nv), cols int32)
      -> (tau bytes (ne,), J bytes (ne, ncols)) */
 static PyObject* mod_effort(PyObject* self, PyObject* args) {
+  (void)self;
   unsigned long long ma, da;
   PyObject *o[3], *out = NULL;
   if (!PyArg_ParseTuple(args, "KKOOO", &ma, &da, o, o + 1, o + 2)) return NULL;
@@ -414,6 +423,7 @@ static PyObject* record(Py_ssize_t size, PyObject* const* fields, int n) {
 }
 
 static PyObject* mod_layout(PyObject* self, PyObject* noargs) {
+  (void)self, (void)noargs;
   PyObject* block[] = {FIELD(Block, kind),  FIELD(Block, start), FIELD(Block, k),
                        FIELD(Block, hard),  FIELD(Block, perp),  FIELD(Block, id),
                        FIELD(Block, id2),   FIELD(Block, dof),   FIELD(Block, t0),
@@ -468,8 +478,9 @@ static PyMethodDef mod_methods[] = {
      "layout() -> {record: (sizeof, {field: offsetof})} of Block, Term and Tunables."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef moddef = {PyModuleDef_HEAD_INIT, "_ikcore",
-                                    "The posture solver's inner loop in C.", -1, mod_methods};
+static struct PyModuleDef moddef = {PyModuleDef_HEAD_INIT, .m_name = "_ikcore",
+                                    .m_doc = "The posture solver's inner loop in C.",
+                                    .m_size = -1, .m_methods = mod_methods};
 
 PyMODINIT_FUNC PyInit__ikcore(void) {
   if (PyType_Ready(&CoreType) < 0) return NULL;

@@ -63,13 +63,17 @@ def _outputs(
     """The one output check of every writing command, before any work: each output path
     given (e.g. ``--output``, ``--report``) must be writable and differ from every input
     path given and from every sign file of the ``lexicon`` directories (see
-    :func:`azee_mj.files.check_output`)."""
-    from azee_mj.files import check_output
+    :func:`azee_mj.files.check_output`); with ``directory`` each is a directory that must
+    exist (one rule with realize: :func:`azee_mj.files.check_output_dir`)."""
+    from azee_mj.files import check_output, check_output_dir
 
     given = [p for p in inputs if p] + _lexicon_files(lexicon)
     paths = [p for p in outputs if p]
     for p in paths:
-        check_output(p, given, directory=directory)
+        if directory:
+            check_output_dir(p)
+        else:
+            check_output(p, given)
     real = [os.path.realpath(p) for p in paths]
     if len(set(real)) < len(real):
         raise AzeeError(f"{paths[0]}: the same file is given for two outputs")
@@ -239,7 +243,7 @@ def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
-    _motion(args)
+    motion = _motion(args)
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
     if len(args.score) > 1 or os.path.isdir(args.score[0]) or _dir_like(args.output):
@@ -247,7 +251,7 @@ def _cmd_realize(args, run: _Run) -> int:
             raise AzeeError("--dynamics realizes one score at a time (give one SCORE and OUT.npz)")
         if args.blinks is not None:
             raise AzeeError("--blinks: give one score (automatic blinks are per score)")
-        return _realize_many(args)
+        return _realize_many(args, motion)
     if args.resume or args.manifest or args.scheduler:
         raise AzeeError("--resume, --manifest and --scheduler are for several scores (-o DIR/)")
     if args.dynamics and args.mode != "multitrack":
@@ -267,7 +271,7 @@ def _cmd_realize(args, run: _Run) -> int:
             mode=args.mode,
             solver=solver,
             progress=_Progress("realize"),
-            **_motion(args),
+            **motion,
         )
     save_rollout(args.output, rollout, inputs=(path,))
     if args.report:
@@ -328,9 +332,10 @@ def _dir_like(path: str) -> bool:
     return path.endswith(("/", os.sep))
 
 
-def _realize_many(args) -> int:
+def _realize_many(args, motion: dict) -> int:
     """Several scores (or directories of them) to ``-o DIR/``: in a process pool (one
-    process per core, or ``--jobs``), or on a Dask cluster (``--scheduler``).
+    process per core, or ``--jobs``), or on a Dask cluster (``--scheduler``), with the
+    checked motion options ``motion`` (:func:`_motion`).
 
     Everything is checked before any score is realized: the output (and ``--report``)
     directories exist and are writable, no two scores write the same file, no output is an
@@ -378,7 +383,7 @@ def _realize_many(args) -> int:
             client=client,
             manifest=args.manifest,
             resume_run=args.resume,
-            motion=_motion(args),
+            motion=motion,
         )
     if not all(o.ok for o in outcomes):
         return EXIT_FINDINGS
@@ -443,10 +448,6 @@ def _cmd_report(args, run: _Run) -> int:
 
     fps = check_fps(args.fps)
     as_dir = _dir_like(args.output) or os.path.isdir(args.output)
-    if as_dir:  # one rule with realize: a directory output must exist
-        from azee_mj.files import check_output_dir
-
-        check_output_dir(args.output)
     _outputs((args.output,), (args.score,), args.lexicon, directory=as_dir)
     paths = write_report(
         run.score_path(args.score, args.lexicon),

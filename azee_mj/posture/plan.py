@@ -223,6 +223,11 @@ class Plan:
         #: (len(free),) dofs a joint target sets: the natural-posture steps leave them.
         pinned = set(blocks["dof"][blocks["kind"] == JOINT].tolist())
         self.pinned = np.array([f in pinned for f in self.free.tolist()], bool)
+        # What every run passes the core unchanged, made once: the preferred posture on the
+        # free dofs, and the free dofs the polish moves (a joint target - a hand shape -
+        # pins its joint).
+        self._prefer_free = np.ascontiguousarray(self.prefer[self.free], float)
+        self._mov = np.flatnonzero(~self.pinned).astype(np.int32)
         if solver.naturalness is not None:
             self._set_natural(solver, problem)
 
@@ -307,7 +312,7 @@ class Plan:
             self.lower[free],
             self.upper[free],
             weight[free],
-            np.ascontiguousarray(self.prefer[free], float),
+            self._prefer_free,
             float(posture),
             float(stop),
             int(max_iter),
@@ -337,14 +342,13 @@ class Plan:
         ``NATURAL_ITER`` steps; two stalls end it (steps that gain under 0.1 %, or no step
         down to a milliradian that gains)."""
         free = self.free
-        mov = np.flatnonzero(~self.pinned)  # a joint target (a hand shape) pins its joint
-        if not mov.size:
+        if not self._mov.size:
             return q, 0.0, 0, None
         q_out, nat, it, hist, why = self.core.polish(
             np.ascontiguousarray(q, float),
             self.lower[free],
             self.upper[free],
-            mov.astype(np.int32),
+            self._mov,
             float(stop),
             self.collide,
         )

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from azee_mj.constraints import PENETRATION_LIMIT
+from azee_mj.frames import nonfinite_frames
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,8 +131,7 @@ def check_rollout(
     positions ``site_pos`` (T, S, 3) [m] are not finite as findings too (every export
     refuses such a file, so ``check`` cannot call it clean)."""
     report = check_poses(model, qpos, allowed=allowed)
-    sp = np.asarray(site_pos, float).reshape(len(site_pos), -1)
-    bad = np.flatnonzero(~np.isfinite(sp).all(axis=1))
+    bad = nonfinite_frames(site_pos)
     return dataclasses.replace(report, nonfinite_sites=tuple(int(f) for f in bad))
 
 

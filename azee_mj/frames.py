@@ -96,6 +96,19 @@ class Frames(np.lib.mixins.NDArrayOperatorsMixin):
         return f"{type(self).__name__}(shape={self.shape}, dtype={self.dtype})"
 
 
+def nonfinite_frames(v: np.ndarray | Frames) -> np.ndarray:
+    """Frames (indices) of the time-first array ``v`` holding NaN or infinity, a block at a
+    time when ``v`` is a :class:`Frames` (never whole in memory)."""
+    if not isinstance(v, Frames):
+        v = np.asarray(v)
+        return np.flatnonzero(~np.isfinite(v.reshape(len(v), -1)).all(axis=1))
+    bad = [
+        start + np.flatnonzero(~np.isfinite(b.reshape(len(b), -1)).all(axis=1))
+        for start, b in v.blocks()
+    ]
+    return np.concatenate(bad) if bad else np.zeros(0, int)
+
+
 class SitePositions(Frames):
     """Positions (T, S, 3) [m] of the sites ``site_ids`` of ``model`` at postures ``qpos``
     (T, nq), computed a block at a time by forward kinematics."""

@@ -39,7 +39,7 @@ import numpy as np
 
 from azee_mj.errors import InputFileError, shorten
 from azee_mj.files import save_npz
-from azee_mj.frames import Frames, NpzFrames
+from azee_mj.frames import Frames, NpzFrames, nonfinite_frames
 from azee_mj.physics import DynamicRollout
 from azee_mj.schedule import TrackInterval
 from azee_mj.timeline import ConstraintTrace, Finding, Mode, Rollout, SolveStats
@@ -250,18 +250,6 @@ def _announced(path, info: zipfile.ZipInfo, shape, dtype: np.dtype, before: int)
     return need
 
 
-def _nonfinite_frames(v: np.ndarray | Frames) -> np.ndarray:
-    """Frames of ``v`` holding NaN or infinity, a block at a time."""
-    T = len(v)
-    if not isinstance(v, Frames):
-        return np.flatnonzero(~np.isfinite(v.reshape(T, -1)).all(axis=1))
-    bad = [
-        start + np.flatnonzero(~np.isfinite(b.reshape(len(b), -1)).all(axis=1))
-        for start, b in v.blocks()
-    ]
-    return np.concatenate(bad) if bad else np.zeros(0, int)
-
-
 def load_rollout(path: str | os.PathLike, nq: int, *, allow_nonfinite: bool = False) -> Rollout:
     """Read a rollout ``.npz`` written for a model with ``nq`` joint coordinates; raise
     :class:`InputFileError` naming what is wrong. Non-finite postures are an error unless
@@ -324,7 +312,7 @@ def _load(path, nq: int, allow_nonfinite: bool) -> Rollout:
     if not allow_nonfinite:
         for k, v in (("qpos", q), ("site_pos", sp)):
             try:
-                badf = _nonfinite_frames(v)
+                badf = nonfinite_frames(v)
             except Exception as e:  # noqa: BLE001 - zipfile and zlib raise many kinds on damage
                 what = shorten(str(e).splitlines()[0] if str(e) else type(e).__name__, 100)
                 raise bad(f"array '{k}' cannot be read whole ({what})") from None

@@ -12,7 +12,7 @@ import pytest
 
 from azee_mj.errors import InputFileError
 from azee_mj.files import save_npz
-from azee_mj.frames import BLOCK, NpzFrames, SitePositions
+from azee_mj.frames import BLOCK, NpzFrames, SitePositions, nonfinite_frames
 from azee_mj.rollout_io import load_rollout, rollout_arrays, save_rollout
 from azee_mj.timeline import realize
 
@@ -52,6 +52,19 @@ def test_site_positions_are_forward_kinematics_a_block_at_a_time(model):
     assert np.array_equal(lazy - 2 * lazy, -whole) and np.abs(lazy).max() == np.abs(whole).max()
     with pytest.raises(IndexError):
         lazy[T]
+
+
+def test_nonfinite_frames_are_found_a_block_at_a_time_as_in_the_whole_array(model):
+    qpos = np.tile(model.qpos0, (2 * BLOCK + 9, 1))
+    bad = [3, BLOCK, BLOCK + 1, 2 * BLOCK + 8]
+    qpos[bad] = np.nan
+    lazy = SitePositions(model, qpos, [0, model.nsite - 1])
+    whole = np.asarray(lazy)
+    assert (~np.isfinite(whole[bad])).any(axis=(1, 2)).all()
+    assert np.isfinite(np.delete(whole, bad, 0)).all()
+    assert nonfinite_frames(lazy).tolist() == bad
+    assert nonfinite_frames(whole).tolist() == bad
+    assert nonfinite_frames(np.zeros((5, 2))).tolist() == []
 
 
 def test_a_streamed_rollout_reads_back_equal_to_the_in_memory_one(tmp_path):

@@ -69,8 +69,6 @@ def load_motion(
     from azee_mj.schedule import schedule, shifted
 
     path = Path(path)
-    bundled = model is None
-    model = model or load_model()
     suffix = path.suffix.lower()
     if suffix == ".json":
         s = sc.load_score(path)
@@ -80,6 +78,8 @@ def load_motion(
         raise InputFileError(
             f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix {path.suffix!r}"
         )
+    bundled = model is None
+    model = model or load_model()
     r = load_rollout(path, model.nq)
     if bundled and list(r.site_names) != list(DEFAULT_MAP.sites):
         raise InputFileError(

@@ -112,8 +112,8 @@ def _local_yup(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.
 def _orders(model: mujoco.MjModel, qpos: np.ndarray) -> list[str]:
     """Per body, its Euler order over the whole motion (a pass over chunks of frames)."""
     worst = {o: np.zeros(model.nbody) for o in _ORDERS}
-    for k0 in mo.chunks(len(qpos)):
-        _, lquat = _local_yup(model, qpos[k0 : k0 + mo.CHUNK])
+    for _, q in mo.chunks(qpos):
+        _, lquat = _local_yup(model, q)
         for o, w in _worst_middle(_quat_mats(lquat)).items():
             np.maximum(worst[o], w, out=worst[o])
     return [_pick({o: float(worst[o][b]) for o in _ORDERS}) for b in range(model.nbody)]
@@ -225,6 +225,5 @@ def write_bvh(
     ctx["lines"] += ["MOTION", f"Frames: {len(qpos)}", f"Frame Time: {1.0 / fps!r}", ""]
     with open(path, "w", encoding="ascii") as f:
         f.write("\n".join(ctx["lines"]))
-        for k0 in mo.chunks(len(qpos)):
-            q = np.asarray(qpos[k0 : k0 + mo.CHUNK], float)
+        for _, q in mo.chunks(qpos):
             f.write(mo.float_rows(_frame_values(model, q, ctx["columns"], orders), DIGITS, " "))

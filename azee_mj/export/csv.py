@@ -44,8 +44,7 @@ def write_csv(
     header = ["time", *(f"{n}_{a}" for n in names for a in "xyz"), *arkit.ARKIT_SHAPES]
     with open(path, "w", newline="") as f:
         _csv.writer(f).writerow(header)
-        for k0 in mo.chunks(len(qpos)):
-            q = np.asarray(qpos[k0 : k0 + mo.CHUNK], float)
+        for k0, q in mo.chunks(qpos):
             pos = mo.site_positions(model, q, model_sites).reshape(len(q), -1)
             shapes = face.weights(model, q, signer_map)
             t = np.arange(k0, k0 + len(q)) / fps

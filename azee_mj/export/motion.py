@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 
 import mujoco
 import numpy as np
@@ -91,9 +91,11 @@ def check_qpos(model: mujoco.MjModel, qpos: np.ndarray, fps: float, where: str =
         raise AzeeError(f"fps must be positive, got {fps}")
 
 
-def chunks(frames: int, size: int = CHUNK) -> range:
-    """The first frame of each chunk of ``size`` frames covering ``frames`` frames."""
-    return range(0, frames, size)
+def chunks(qpos: np.ndarray, size: int = CHUNK) -> Iterator[tuple[int, np.ndarray]]:
+    """``(first frame, postures as floats)`` of each chunk of ``size`` frames of ``qpos``,
+    in order."""
+    for k0 in range(0, len(qpos), size):
+        yield k0, np.asarray(qpos[k0 : k0 + size], float)
 
 
 def float_rows(

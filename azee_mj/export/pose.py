@@ -492,8 +492,6 @@ def write_pose(
     with open(path, "wb") as f:
         header.write(f)
         f.write(struct.pack("<f", float(fps)) + struct.pack("<I", T) + struct.pack("<H", 1))
-        f.writelines(
-            _points(model, qpos[k0 : k0 + mo.CHUNK], signer_map).tobytes() for k0 in mo.chunks(T)
-        )
+        f.writelines(_points(model, q, signer_map).tobytes() for _, q in mo.chunks(qpos))
         ones = np.ones(min(T, mo.CHUNK) * n, np.float32).tobytes()
-        f.writelines(ones[: min(mo.CHUNK, T - k0) * n * 4] for k0 in mo.chunks(T))
+        f.writelines(ones[: min(mo.CHUNK, T - k0) * n * 4] for k0 in range(0, T, mo.CHUNK))

@@ -168,9 +168,16 @@ def test_sighup_and_sigquit_leave_no_temporary_file(tmp_path, sig):
         text=True,
     )
     deadline = time.monotonic() + 60
-    while not any(out.iterdir()) and time.monotonic() < deadline:  # writing has started
+    while time.monotonic() < deadline:  # stop the writer while its temporary file exists
+        temporaries = [f for f in out.iterdir() if f.name.startswith(".")]
+        if temporaries:
+            p.send_signal(signal.SIGSTOP)
+            if all(f.exists() for f in temporaries):
+                break
+            p.send_signal(signal.SIGCONT)
         time.sleep(0.02)
-    p.send_signal(sig)
+    p.send_signal(sig)  # delivered mid-write when the writer continues
+    p.send_signal(signal.SIGCONT)
     _, err = p.communicate(timeout=60)
     assert (p.returncode, err) == (143, "azee-mj: terminated\n")
     assert list(out.iterdir()) == []

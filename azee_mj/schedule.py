@@ -334,18 +334,25 @@ class Schedule:
 
     def _contact_windows(self) -> list[ContactWindow]:
         """The windows of the body pairs each contact constraint of the score may bring
-        together: a hand counts as one part (its fingers touch too)."""
+        together: a hand counts as one part (its fingers touch too), except in a contact
+        of two digits of one hand (a pinch), which brings only their two phalanges
+        together: the rest of that hand keeps clear of itself."""
         out = []
+        part, site_body = self.anatomy.part, self.anatomy.site_body
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
                 partners = self.comp.contact_sites(c)
-                part = self.anatomy.part
                 if partners:
-                    mine = part(self.anatomy.site_body(self.comp.site(c.site)))
+                    body = site_body(self.comp.site(c.site))
+                    mine = part(body)
                 for s in partners:
-                    other = part(self.anatomy.site_body(s))
+                    other = part(site_body(s))
+                    pair = ((body,), (site_body(s),)) if other == mine else (mine, other)
                     out += [
-                        ContactWindow(b.start, b.end, x, y) for x in mine for y in other if x != y
+                        ContactWindow(b.start, b.end, x, y)
+                        for x in pair[0]
+                        for y in pair[1]
+                        if x != y
                     ]
         return out
 

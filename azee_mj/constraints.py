@@ -57,22 +57,56 @@ class Constraint(Protocol):
 
 @dataclasses.dataclass(frozen=True)
 class Place:
-    """Model site ``site`` at the point ``target``; within ``tol`` [m]."""
+    """Model site ``site`` at the point ``target``; within ``tol`` [m].
+
+    A site on a round end of the body (a fingertip) touches a surface with whichever point
+    of that end faces it, not only head-on: ``shift`` (a vector expression, added to the
+    site: from the site to the end's centre and on to where that centre lies when the end
+    touches) and ``gap`` (two round ends: the sum of their radii [m], the distance their
+    centres keep) say so; :func:`~azee_mj.contact.rolling` makes them. Then the rows are
+    ``d = site + shift - target`` (one round end) or ``d - gap d / |d|`` (two), the
+    residual how far the touching point is from the target's site; or, where that is
+    less (in a crease, the mouth's corner, that the round end cannot fill), the site's own
+    distance from the target, the end meeting head-on.
+    """
 
     site: str
     target: Expr
     tol: float = 1e-3
     label: str = ""
+    shift: Expr | None = None
+    gap: float = 0.0
     soft: ClassVar[bool] = False
 
     def rows(self, k: Kinematics):
         p, jp = k.site(k.names.site(self.site))
         t, jt = k.eval(self.target)
-        return (p - t) / self.tol, (jp if jt is None else jp - jt) / self.tol
+        d, J = p - t, (jp if jt is None else jp - jt)
+        if self.shift is not None or self.gap > 0.0:
+            e, Je = self._rolled(k, d, J)
+            if e @ e < d @ d:
+                d, J = e, Je
+        return d / self.tol, J / self.tol
+
+    def _rolled(self, k: Kinematics, d: np.ndarray, J: np.ndarray):
+        """The round end's rows from the site's (``d`` and its Jacobian ``J``)."""
+        if self.shift is not None:
+            s, js = k.eval(self.shift)
+            d, J = d + s, (J if js is None else J + js)
+        if self.gap > 0.0:
+            n = max(float(np.linalg.norm(d)), 1e-9)
+            u = d / n
+            J = J - (self.gap / n) * (J - np.outer(u, u @ J))
+            d = d - self.gap * u
+        return d, J
 
     def residual(self, k: Kinematics) -> float:
-        p = k.d.site_xpos[k.names.site(self.site)]
-        return float(np.linalg.norm(p - k.eval(self.target, jac=False)[0]))
+        d = k.d.site_xpos[k.names.site(self.site)] - k.eval(self.target, jac=False)[0]
+        plain = float(np.linalg.norm(d))
+        if self.shift is not None:
+            d = d + k.eval(self.shift, jac=False)[0]
+        n = float(np.linalg.norm(d))
+        return min(plain, abs(n - self.gap) if self.gap > 0.0 else n)
 
 
 @dataclasses.dataclass(frozen=True)

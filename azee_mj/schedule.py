@@ -17,11 +17,11 @@ import mujoco
 import numpy as np
 
 from azee_mj import constraints as cn
-from azee_mj import ik, natural, reach
+from azee_mj import contact, ik, natural, reach
 from azee_mj import score as sc
 from azee_mj.anatomy import SignerAnatomy, descends
 from azee_mj.intervals import IntervalIndex
-from azee_mj.kinematics import compile_point, compile_vector
+from azee_mj.kinematics import SitePos, compile_point, compile_vector
 from azee_mj.model import MODEL_PATH
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timing import frame_range
@@ -136,7 +136,14 @@ class Compiler:
     def constraint(self, c, label: str):
         """The IK constraint of a place / orient / look, or None for morph / trill."""
         if isinstance(c, sc.Place):
-            return cn.Place(self.site(c.site), compile_point(c.at, self.smap), c.tol, label)
+            site, at = self.site(c.site), compile_point(c.at, self.smap)
+            ends = None
+            hands = self.anatomy.hand_of
+            if isinstance(at, SitePos) and hands(site) is not None and hands(at.site) is not None:
+                ends = contact.rolling(self.m, self.smap, site, at.site)
+            if ends is None:
+                return cn.Place(site, at, c.tol, label)
+            return cn.Place(site, at, c.tol, label, shift=ends[0], gap=ends[1])
         if isinstance(c, sc.Orient):
             b = c.bone.bone_map(self.smap)
             local = b.dir if c.axis is sc.Axis.DIR else b.nrm

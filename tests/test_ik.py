@@ -96,6 +96,28 @@ CONSTRAINTS = [
         ),
     ),
     cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.Const((0.4, 0.1, 0.3))),
+    # round ends (fingertips): one end on a flat site, two ends meeting
+    cn.Place(
+        "I_TIP_R",
+        kin.SitePos("PA_L"),
+        shift=kin.Lin(
+            (
+                (-0.0068, kin.BodyAxis("index_R_3", (0.0, 0.0, -1.0))),
+                (-0.0068, kin.BodyAxis("palm_L", (0.0, 1.0, 0.0))),
+            )
+        ),
+    ),
+    cn.Place(
+        "I_TIP_R",
+        kin.SitePos("T_TIP_R"),
+        shift=kin.Lin(
+            (
+                (-0.0068, kin.BodyAxis("index_R_3", (0.0, 0.0, -1.0))),
+                (0.0085, kin.BodyAxis("thumb_R_3", (0.422, 0.052, -0.905))),
+            )
+        ),
+        gap=0.0153,
+    ),
 ]
 
 

@@ -462,3 +462,17 @@ def test_schedule_intervals_lie_within_their_parents(solver, children):
             inside = [k for k in covered if iv.start - 1e-9 <= k[0] and k[1] <= iv.end + 1e-9]
             assert inside and inside[0][0] == pytest.approx(iv.start)
             assert inside[-1][1] == pytest.approx(iv.end)
+
+
+def test_a_pinch_lets_only_its_two_phalanges_touch(solver):
+    """Two digits of one hand: only the thumb's and the index's tip phalanges may touch,
+    not the rest of the hand with itself."""
+    score = envelope(
+        sync(
+            "C", 0.8, cstr("K", 0.4, 0.8, {"type": "place", "site": "@T_TIP(s)", "at": "@I_TIP(s)"})
+        )
+    )
+    times = np.arange(41) / 50.0
+    allowed = contact_pairs(load_score(score), times, solver)
+    pairs = {tuple(sorted(p)) for v in allowed.values() for p in v}
+    assert pairs == {("index_R_3", "thumb_R_3")}

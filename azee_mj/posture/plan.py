@@ -136,7 +136,7 @@ class BlockCompiler:
         """Constraint ``c``'s blocks (a general form is one ``GENERIC`` block)."""
         s = self.s
         if isinstance(c, Place):
-            flat = flat_point(c.target)
+            flat = flat_point(c.target) if c.shift is None and not c.gap else None
             if flat is not None:
                 const, terms = flat
                 return [_block(POINT, 3, id=s.site_id(c.site), **self._terms(terms), c=const)]

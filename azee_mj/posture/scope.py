@@ -57,6 +57,8 @@ class Scope:
         if isinstance(c, Place):
             walk(SitePos(c.site))
             walk(c.target)
+            if c.shift is not None:
+                walk(c.shift)
         elif isinstance(c, Orient):
             walk(BodyAxis(c.body, c.local))
             walk(c.vector)

@@ -18,6 +18,7 @@ import dataclasses
 import mujoco
 import numpy as np
 
+from azee_mj import constraints as cn
 from azee_mj.kinematics import BodyAxis, Expr, Lin
 from azee_mj.sites import SignerMap
 
@@ -94,3 +95,14 @@ def rolling(
         )
     )
     return shift, 0.0
+
+
+def head_on(constraints) -> tuple | None:
+    """``constraints`` with every round-end placement (a ``shift`` or a ``gap``) made a
+    placement of the site itself (the end meeting head-on), or None if there is none."""
+    rolled = [isinstance(c, cn.Place) and (c.shift is not None or c.gap > 0.0) for c in constraints]
+    if not any(rolled):
+        return None
+    return tuple(
+        dataclasses.replace(c, shift=None, gap=0.0) if r else c for c, r in zip(constraints, rolled)
+    )

@@ -35,6 +35,7 @@ import mujoco
 import numpy as np
 
 from azee_mj.constraints import PENETRATION_LIMIT, Constraint
+from azee_mj.contact import head_on
 from azee_mj.kinematics import Kinematics, Names
 from azee_mj.natural import Effort, Naturalness
 from azee_mj.posture import equalities, starts
@@ -250,8 +251,16 @@ class Solver:
         Strict priorities: the constraints, then no penetration, then (with a
         ``naturalness``) the most natural posture among those that meet both.
         Never raises for geometry: an infeasible problem returns the best posture found
-        with ``converged=False``.
+        with ``converged=False``. Fingertips that may touch with any point of their round
+        end are tried head-on first (:func:`head_on_first`).
         """
+        result = head_on_first(self._solve_once, problem, q0)
+        if self.on_solve is not None:
+            self.on_solve(problem, result)
+        return result
+
+    def _solve_once(self, problem: IKProblem, q0) -> tuple[IKResult, tuple[int, float]]:
+        """:meth:`solve` as posed, and the kept attempt's rank (see :class:`Attempt`)."""
         t0 = time.perf_counter()
         q_start = np.clip(
             self.natural if q0 is None else np.asarray(q0, float), self.lower, self.upper
@@ -287,9 +296,7 @@ class Solver:
             stop=best.stop,
             polish=best.polish,
         )
-        if self.on_solve is not None:
-            self.on_solve(problem, result)
-        return result
+        return result, best.rank
 
     def _first_attempts(self, plan, problem, q_start, history) -> tuple[Attempt, int]:
         """The best attempt from every seed and the warm start, and their iterations."""
@@ -370,6 +377,23 @@ class Solver:
         """One Levenberg-Marquardt run (see :meth:`Plan.lm`) with this solver's joint
         weights and iteration budget."""
         return plan.lm(q, self.dof_weight, self.max_iter, history, posture, stop, early)
+
+
+def head_on_first(solve_once, problem: IKProblem, q0) -> IKResult:
+    """Solve ``problem`` with ``solve_once`` (problem, start -> (result, rank)); when it
+    places a round end (:func:`~azee_mj.contact.head_on`) and may restart, also with the
+    ends meeting head-on only, keeping the better: a meet before a miss, then the more
+    natural (a fingertip that can touch head-on, the temple, the brow, comes at it as
+    before and does not take another arm branch for the freedom its roundness gives),
+    and of two misses the rolled one (its residual is the contact's own)."""
+    plain = head_on(problem.constraints)
+    if plain is None or (problem.restarts is not None and problem.restarts < 2):
+        return solve_once(problem, q0)[0]
+    a, rank_a = solve_once(dataclasses.replace(problem, constraints=plain), q0)
+    b, rank_b = solve_once(problem, q0)
+    if rank_a[0] == 0 and (rank_b[0] != 0 or rank_a[1] <= rank_b[1]):
+        return dataclasses.replace(a, iterations=a.iterations + b.iterations, time=a.time + b.time)
+    return dataclasses.replace(b, iterations=a.iterations + b.iterations, time=a.time + b.time)
 
 
 def _narrow(plan: Plan, problem: IKProblem, q_start: np.ndarray, upper: np.ndarray) -> np.ndarray:

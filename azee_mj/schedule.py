@@ -138,8 +138,7 @@ class Compiler:
         if isinstance(c, sc.Place):
             site, at = self.site(c.site), compile_point(c.at, self.smap)
             ends = None
-            hands = self.anatomy.hand_of
-            if isinstance(at, SitePos) and hands(site) is not None and hands(at.site) is not None:
+            if isinstance(at, SitePos) and not c.at.ref.locus:
                 ends = contact.rolling(self.m, self.smap, site, at.site)
             if ends is None:
                 return cn.Place(site, at, c.tol, label)

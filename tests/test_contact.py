@@ -104,3 +104,13 @@ def test_round_end_rows_match_finite_differences(model, target):
         d.qpos[i] += eps
         fd[:, i] = (c.rows(_fk(model, d))[0] - r0) / eps
     np.testing.assert_allclose(J, fd, atol=1e-4 * max(1.0, np.abs(J).max()))
+
+
+def test_head_on_makes_round_end_placements_plain(model):
+    sites = DEFAULT_MAP.sites
+    shift, gap = contact.rolling(model, DEFAULT_MAP, sites["I_TIP_R"], sites["T_TIP_R"])
+    rolled = cn.Place(sites["I_TIP_R"], kin.SitePos(sites["T_TIP_R"]), shift=shift, gap=gap)
+    other = cn.Place(sites["PA_R"], kin.SitePos(sites["PA_L"]))
+    assert contact.head_on((other,)) is None
+    plain = contact.head_on((rolled, other))
+    assert plain == (cn.Place(sites["I_TIP_R"], kin.SitePos(sites["T_TIP_R"])), other)

@@ -97,6 +97,29 @@ def rolling(
     return shift, 0.0
 
 
+#: How far from head-on a round end may meet its target [deg] when it touches with any
+#: point of its end (the face-to-face rule of its placement widened to this): the touching
+#: point stays on the end's dome, away from where the finger's side begins (90).
+ROLLED_FACING_DEG = 60.0
+
+
+def widened(constraints) -> tuple:
+    """``constraints`` with the face-to-face rule (``Orient`` labelled ``X:facing``) of
+    each round-end placement ``X`` widened to :data:`ROLLED_FACING_DEG`."""
+    rolled = {
+        f"{c.label}:facing"
+        for c in constraints
+        if isinstance(c, cn.Place) and (c.shift is not None or c.gap > 0.0)
+    }
+    tol = float(np.radians(ROLLED_FACING_DEG))
+    return tuple(
+        dataclasses.replace(c, tol=max(c.tol, tol))
+        if isinstance(c, cn.Orient) and c.label in rolled
+        else c
+        for c in constraints
+    )
+
+
 def head_on(constraints) -> tuple | None:
     """``constraints`` with every round-end placement (a ``shift`` or a ``gap``) made a
     placement of the site itself (the end meeting head-on), or None if there is none."""

@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from azee_mj.constraints import PENETRATION_LIMIT, Constraint
-from azee_mj.contact import head_on
+from azee_mj.contact import head_on, widened
 from azee_mj.kinematics import Kinematics, Names
 from azee_mj.natural import Effort, Naturalness
 from azee_mj.posture import equalities, starts
@@ -390,7 +390,9 @@ def head_on_first(solve_once, problem: IKProblem, q0) -> IKResult:
     if plain is None or (problem.restarts is not None and problem.restarts < 2):
         return solve_once(problem, q0)[0]
     a, rank_a = solve_once(dataclasses.replace(problem, constraints=plain), q0)
-    b, rank_b = solve_once(problem, q0)
+    b, rank_b = solve_once(
+        dataclasses.replace(problem, constraints=widened(problem.constraints)), q0
+    )
     if rank_a[0] == 0 and (rank_b[0] != 0 or rank_a[1] <= rank_b[1]):
         return dataclasses.replace(a, iterations=a.iterations + b.iterations, time=a.time + b.time)
     return dataclasses.replace(b, iterations=a.iterations + b.iterations, time=a.time + b.time)

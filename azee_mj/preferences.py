@@ -47,7 +47,7 @@ MEET_TOL = 0.1
 FACING_TOL_BODY = 20.0
 #: An elbow held below its shoulder, as a natural preference when the hand is placed
 #: below the eyes: (how far below [m], the height above that costs one unit [m]).
-ELBOW_LOW = (0.02, 0.05)
+ELBOW_LOW = (0.02, 0.02)
 #: How far above the highest brow (or eye) site a placed hand still keeps its elbow low [m].
 BROW_MARGIN = 0.005
 #: Rounded parts of the body [deg]: a fingertip meets them from a range of directions

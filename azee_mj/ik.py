@@ -387,15 +387,15 @@ def head_on_first(solve_once, problem: IKProblem, q0) -> IKResult:
     before and does not take another arm branch for the freedom its roundness gives),
     and of two misses the rolled one (its residual is the contact's own)."""
     plain = head_on(problem.constraints)
-    if plain is None or (problem.restarts is not None and problem.restarts < 2):
+    if plain is None:
         return solve_once(problem, q0)[0]
+    rolled = dataclasses.replace(problem, constraints=widened(problem.constraints))
+    if problem.restarts is not None and problem.restarts < 2:
+        return solve_once(rolled, q0)[0]  # a frame or a step: on the branch it starts on
     a, rank_a = solve_once(dataclasses.replace(problem, constraints=plain), q0)
-    b, rank_b = solve_once(
-        dataclasses.replace(problem, constraints=widened(problem.constraints)), q0
-    )
-    if rank_a[0] == 0 and (rank_b[0] != 0 or rank_a[1] <= rank_b[1]):
-        return dataclasses.replace(a, iterations=a.iterations + b.iterations, time=a.time + b.time)
-    return dataclasses.replace(b, iterations=a.iterations + b.iterations, time=a.time + b.time)
+    b, rank_b = solve_once(rolled, q0)
+    kept = a if rank_a[0] == 0 and (rank_b[0] != 0 or rank_a[1] <= rank_b[1]) else b
+    return dataclasses.replace(kept, iterations=a.iterations + b.iterations, time=a.time + b.time)
 
 
 def _narrow(plan: Plan, problem: IKProblem, q_start: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -114,3 +114,19 @@ def test_head_on_makes_round_end_placements_plain(model):
     assert contact.head_on((other,)) is None
     plain = contact.head_on((rolled, other))
     assert plain == (cn.Place(sites["I_TIP_R"], kin.SitePos(sites["T_TIP_R"])), other)
+
+
+def test_widened_opens_only_the_facing_rule_of_a_round_end_placement(model):
+    sites = DEFAULT_MAP.sites
+    shift, _ = contact.rolling(model, DEFAULT_MAP, sites["I_TIP_R"], sites["CH"])
+    tip = cn.Place(sites["I_TIP_R"], kin.SitePos(sites["CH"]), label="K#0", shift=shift)
+    palm = cn.Place(sites["PA_R"], kin.SitePos(sites["PA_L"]), label="K#1")
+    up = kin.Const((0.0, 0.0, 1.0))
+    facing = [
+        cn.Orient(body, (1.0, 0.0, 0.0), cn.Rel.OPP, up, np.radians(20.0), f"{p.label}:facing")
+        for body, p in (("index_R_3", tip), ("palm_R", palm))
+    ]
+    out = contact.widened((tip, palm, *facing))
+    assert out[:2] == (tip, palm)
+    assert out[2].tol == pytest.approx(np.radians(contact.ROLLED_FACING_DEG))
+    assert out[3] == facing[1]

@@ -93,7 +93,7 @@ class Settings:
     """
 
     timestep: float = 0.002
-    frequency: float = 8.0
+    frequency: float = 20.0
     damping_ratio: float = 1.0
     eq_solref: tuple[float, float] = (0.008, 1.0)
     eq_solimp: tuple[float, float, float] = (0.9, 0.95, 0.001)

@@ -54,7 +54,7 @@ def wrist_speed(r, site: str) -> np.ndarray:
 
 def penetrations(r, score, solver) -> float:
     """The deepest penetration of the rollout's frames outside the contacts the score asks
-    for [m]."""
+    for [m] (``score`` on the rollout's clock, :func:`on_clock`)."""
     sched = Schedule(score, solver)
     m = solver.model
     d = mujoco.MjData(m)
@@ -69,7 +69,8 @@ def holds(r, score) -> dict:
     """The worst error at the holds of the constraints with the default tolerance (1 mm,
     1 degree): place [mm], orient and look [deg], leaving out the frames a trill moves (a
     kinematic trace is measured before the trill is added, a simulated one with it); and
-    whether the looser ones (a facing rule of 15 degrees, ...) are within theirs."""
+    whether the looser ones (a facing rule of 15 degrees, ...) are within theirs.
+    ``score`` is on the rollout's clock (:func:`on_clock`)."""
     trilled = np.zeros(len(r.time), bool)
     for a, b in physics.trill_windows(score):
         trilled[(r.time >= a - 1e-9) & (r.time < b)] = True
@@ -88,15 +89,47 @@ def holds(r, score) -> dict:
     }
 
 
-def demand(kin, score) -> tuple[float, str]:
+def demand(kin, score) -> tuple[float, str, list[dict]]:
     """The largest ratio of the torque the kinematic frames need (the reference's inverse
-    dynamics at the simulation's steps, no contact) to the joint's limit, and that joint."""
+    dynamics at the simulation's steps, no contact) to the joint's limit, that joint, and
+    the stretches of frames where the need is over the limit (start, end [s], peak ratio,
+    joint, the block running): where the kinematic frames are not a body's motion.
+    ``score`` is on the rollout's clock (:func:`on_clock`)."""
     ties = physics.ties(score)
     m = physics.actuated_model(ties)
     ref = physics.reference(m, kin, ties)
     ratio = np.abs(ref.torque_ff) / m.actuator_forcerange[:, 1]
     j = int(np.unravel_index(np.argmax(ratio), ratio.shape)[1])
-    return float(ratio.max()), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+    name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+    per_frame = ratio[:: ref.substeps]
+    over = per_frame.max(axis=1) > 1.0
+    spans = []
+    f = 0
+    while f < len(over):
+        if not over[f]:
+            f += 1
+            continue
+        g = f
+        while g + 1 < len(over) and over[g + 1]:
+            g += 1
+        k = f + int(np.argmax(per_frame[f : g + 1].max(axis=1)))
+        jj = int(np.argmax(per_frame[k]))
+        spans.append(
+            {
+                "start": float(kin.time[f]),
+                "end": float(kin.time[g]),
+                "peak_ratio": float(per_frame[k, jj]),
+                "joint": mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, jj),
+                "block": physics.block_at(score, float(kin.time[k])),
+            }
+        )
+        f = g + 1
+    return float(ratio.max()), name, spans
+
+
+def on_clock(score, r):
+    """``score`` on rollout ``r``'s clock: shifted by the lead-in from rest before it."""
+    return score.shifted(r.score_start) if r.score_start else score
 
 
 def compare(score, solver, repeat: int = 1) -> dict:
@@ -126,7 +159,8 @@ def compare(score, solver, repeat: int = 1) -> dict:
             )
     ratio = dyn.torque_peak / dyn.torque_limit
     j = int(np.unravel_index(np.argmax(ratio), ratio.shape)[1])
-    need, need_joint = demand(kin, score)
+    score = on_clock(score, kin)  # the windows below (trills, contacts) on the frames' clock
+    need, need_joint, infeasible = demand(kin, score)
     dur = float(kin.time[-1])
     return {
         "duration_s": dur,
@@ -142,6 +176,7 @@ def compare(score, solver, repeat: int = 1) -> dict:
             "saturated_frames": int((ratio > 0.999).any(axis=1).sum()),
             "kinematic_demand_ratio": need,
             "kinematic_demand_joint": need_joint,
+            "kinematic_over_limit": infeasible,
         },
         "tracking_site_mm": 1000 * float(dyn.tracking_site.max()),
         "energy_j": float(dyn.energy[-1]),
@@ -254,6 +289,14 @@ def main() -> None:
     for name, score in scores.items():
         results[name] = compare(score, solver, args.repeat)
         print(_line(name, results[name]), flush=True)
+    print("\nwhere the kinematic frames need more than the torque limits (peak >= 1.5):")
+    for name, r in results.items():
+        for w in r["torque"]["kinematic_over_limit"]:
+            if w["peak_ratio"] >= 1.5:
+                print(
+                    f"  {name}: {w['start']:.2f}-{w['end']:.2f} s, {w['peak_ratio']:.1f}x "
+                    f"{w['joint']} ({w['block']})"
+                )
     out = HERE / "results" / ("physics-quick.json" if args.quick else "physics.json")
     doc = {"machine": machine(repeat=args.repeat), "results": results}
     out.write_text(json.dumps(doc, indent=1) + "\n")

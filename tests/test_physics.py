@@ -21,7 +21,10 @@ DATA = Path(__file__).parent / "data"
 BIEN = ROOT / "examples" / "bien.json"
 #: Golden physics rollout of bien (every 6th frame): postures within 1e-6 rad, torques
 #: within 1e-4 N m (MuJoCo is deterministic on one machine; across machines and compilers
-#: the last bits of floating point may differ).
+#: the last bits of floating point may differ). Regenerated when the default settings
+#: change on purpose (last: 20 Hz tracking instead of 8 Hz, postures moved by up to
+#: 2.6e-4 rad and torques by up to 6.9 N m; the body tracks the kinematic sites within
+#: 0.35 mm either way).
 GOLDEN = DATA / "physics_bien_golden.npz"
 GOLDEN_EVERY = 6
 
@@ -91,6 +94,19 @@ def test_holds_are_met_within_2_mm_and_2_degrees(bien):
     # it is a simulation: the body does not follow the kinematic frames bit for bit
     assert 0.0 < p.tracking_site.max() < 2e-3
     assert not np.array_equal(p.qpos, kin.qpos)
+
+
+def test_holds_after_a_transition_too_fast_for_the_limits_are_met(solver):
+    # nicht-sondern's frames need 2.6 times the left shoulder's limit before the hold
+    # SONDERN.HANDS_CONTACT: the body lags there and must catch up by the hold
+    score = load_score(ROOT / "examples" / "nicht-sondern.json")
+    kin = timeline.realize(score, solver=solver)
+    p = physics.simulate(kin, score, solver=solver)
+    assert (p.torque_peak >= p.torque_limit * (1 - 1e-9)).any(), "no actuator saturated"
+    assert p.tracking_site.max() > 0.02  # it did lag, by centimetres
+    for t in p.traces:
+        lim = 2e-3 if t.unit == "m" else np.radians(2.0)
+        assert t.worst <= lim, t.describe()
 
 
 def test_same_bytes_every_run(bien, solver, tmp_path):

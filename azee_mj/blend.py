@@ -200,15 +200,20 @@ def track_curve(
     flattened: bool = False,
     carried=(),
     rest: Rest | None = None,
+    out=None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Joint values (T, len(dofs)) of one track at ``times`` [s], from the neutral
+    """Joint values (T, len(dofs)) of one track at ``times`` [s] (ascending), from the neutral
     posture ``home`` (nq,) through its ``keys``, and a (T,) flag where it blends (see
     :func:`blend_window`). With ``rest``, the first blend is the track's lead-in (``rest.lead``
     long, or none: it starts in its first posture) and it returns to ``home`` after its last
-    hold at ``rest.relax_at`` (see :class:`Rest`)."""
+    hold at ``rest.relax_at`` (see :class:`Rest`). ``out``: where to write the joint values
+    (anything taking ``out[a:b] = values``, e.g. :class:`Columns` of the frames; returned)
+    instead of a new array."""
     holds = holds_of(keys, dofs)
     start = holds[0].q if rest is not None and rest.lead is None and holds else home[dofs]
-    out = np.tile(start, (len(times), 1))
+    if out is None:
+        out = np.empty((len(times), len(dofs)))
+    out[:] = start
     blending = np.zeros(len(times), bool)
     prev, prev_q = None, start
     for hold in holds:
@@ -226,15 +231,28 @@ def track_curve(
     return out, blending
 
 
+class Columns:
+    """The columns ``cols`` of the frames ``q`` (T, nq) as a (T, len(cols)) target of
+    slice assignments, written in place (``q[:, cols]`` would be a copy, as large as the
+    track: 46 columns of 120 for the face)."""
+
+    def __init__(self, q: np.ndarray, cols: np.ndarray):
+        self.q, self.cols = q, cols
+
+    def __setitem__(self, rows: slice, values) -> None:
+        self.q[rows, self.cols] = values
+
+
 def _blend(out, blending, times, w0: float, w1: float, qa, qb) -> None:
     """Frames at ``times`` in ``[w0, w1)`` from ``qa`` to ``qb`` in minimum-jerk time, and
     ``qb`` from ``w1`` on (in place)."""
+    # ``times`` ascend: the frames in a window are a slice (not a scan of every frame)
+    a, b = np.searchsorted(times, (w0, w1), side="left")
     if w1 > w0:
-        sel = (times >= w0) & (times < w1)
-        u = minjerk((times[sel] - w0) / (w1 - w0))[:, None]
-        out[sel] = qa + u * (qb - qa)
-        blending[sel] = True
-    out[times >= w1] = qb
+        u = minjerk((times[a:b] - w0) / (w1 - w0))[:, None]
+        out[a:b] = qa + u * (qb - qa)
+        blending[a:b] = True
+    out[b:] = qb
 
 
 def goal_key(keys: list[Key], i: int, dofs: np.ndarray) -> Key | None:

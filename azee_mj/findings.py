@@ -11,6 +11,7 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping
 
 import numpy as np
@@ -90,12 +91,13 @@ def speed_findings(
     out = []
     wrists = [site for site in WRISTS if site in site_names]
     tracks = _columns(site_pos, [site_names.index(site) for site in wrists])
-    checks = [
-        (site, WRISTS[site], frame_speeds(tracks[:, k], fps), "m/s")
-        for k, site in enumerate(wrists)
-    ]
-    checks += [(j, tr, frame_speeds(qpos[:, adr], fps), "rad/s") for j, (tr, adr) in joints.items()]
-    for what, track, v, unit in checks:
+    # one speed series at a time: all of them at once are as large as the postures
+    checks = itertools.chain(
+        ((site, WRISTS[site], tracks[:, k], "m/s") for k, site in enumerate(wrists)),
+        ((j, tr, qpos[:, adr], "rad/s") for j, (tr, adr) in joints.items()),
+    )
+    for what, track, x, unit in checks:
+        v = frame_speeds(x, fps)
         limit = WRIST_LIMIT if unit == "m/s" else JOINT_LIMIT
         for f0, f1 in runs(v > limit):
             peak = f0 + int(np.argmax(v[f0 : f1 + 1]))

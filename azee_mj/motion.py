@@ -30,6 +30,7 @@ from azee_mj.blend import (
     REST_JOINT_SPEED,
     REST_SPEED,
     SAME_POSTURE,
+    Columns,
     Hold,
     Key,
     Rest,
@@ -188,8 +189,15 @@ class Motion:
         flattened = self.mode is Mode.FLATTENED
         for ti, t in enumerate(names):
             d = sched.track_dofs[t]
-            q[:, d], moving[:, ti] = track_curve(
-                keys[t], times, d, sched.home, flattened, carried[t], self.rests.get(t)
+            _, moving[:, ti] = track_curve(
+                keys[t],
+                times,
+                d,
+                sched.home,
+                flattened,
+                carried[t],
+                self.rests.get(t),
+                Columns(q, d),
             )
         if flattened:
             return self.flat_transpaths(q, times)

@@ -22,7 +22,6 @@ from collections.abc import Iterable
 
 import mujoco
 import numpy as np
-from scipy import optimize
 
 from azee_mj import constraints as cn
 from azee_mj import ik, surface
@@ -413,6 +412,8 @@ def _grid(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
 def _box_search(miss, grid: np.ndarray, maxfev: int) -> np.ndarray:
     """The minimum of ``miss`` over joint values: the best point of ``grid``, then
     Nelder-Mead from it (at most ``maxfev`` evaluations; ``miss`` clips to the box)."""
+    from scipy import optimize  # here: a realization that never needs it stays 45 MB lighter
+
     best = min(grid, key=miss)
     return optimize.minimize(
         miss, best, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-8, "maxfev": maxfev}

@@ -127,6 +127,7 @@ class Compiler:
         for track, joints in smap.tracks.items():
             for j in joints:
                 self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
+        self._morph_targets: dict[tuple[str, str], cn.JointTarget] = {}
 
     # expressions
     def site(self, ref: sc.SiteRef) -> str:
@@ -168,7 +169,13 @@ class Compiler:
             jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
             lo, hi = m.jnt_range[jid]
             val = float(np.clip(m.qpos0[m.jnt_qposadr[jid]] + v, lo, hi))
-            out.append(cn.JointTarget(j, val, MORPH_TOL, f"morph:{j}"))
+            # one record per joint and value, shared by every key that holds it (each
+            # key's own copies grew by about 0.8 MB per minute of score)
+            key = (j, val.hex())  # hex: 0.0 and -0.0 stay apart
+            target = self._morph_targets.get(key)
+            if target is None:
+                target = self._morph_targets[key] = cn.JointTarget(j, val, MORPH_TOL, f"morph:{j}")
+            out.append(target)
         return out
 
     # tracks

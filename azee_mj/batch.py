@@ -122,6 +122,52 @@ def plan(scores: Sequence[Path], out_dir: Path, report_dir: Path | None = None) 
     return jobs
 
 
+def fingerprint(
+    fps: float,
+    mode: str = "multitrack",
+    motion: Mapping | None = None,
+    lexicon: Iterable[str | os.PathLike] = (),
+    *,
+    dynamics: bool = False,
+    blinks: tuple[int, float] | None = None,
+) -> str:
+    """The options a rollout was realized with, as one line that the same options always
+    give and other options never do, e.g. ``fps=50.0;mode=multitrack;rest=1;hold=0.3;
+    tempo=1.0``: ``fps`` [frames/s], the ``mode``, the ``motion`` options (``rest``,
+    ``hold`` [s], ``tempo``; defaults filled in), the sign directories ``lexicon`` an
+    ``.azee`` score was compiled with (absolute paths; their contents are not read),
+    ``dynamics`` (the physics mode) and automatic ``blinks`` (seed, rate per minute).
+    ``--resume`` realizes again an output whose recorded fingerprint differs."""
+    from azee_mj.blend import REST_HOLD
+
+    m = dict(motion or {})
+    parts = [
+        f"fps={float(fps)!r}",
+        f"mode={mode}",
+        f"rest={int(bool(m.get('rest', True)))}",
+        f"hold={float(m.get('hold', REST_HOLD))!r}",
+        f"tempo={float(m.get('tempo', 1.0))!r}",
+    ]
+    if dynamics:
+        parts.append("dynamics=1")
+    if blinks is not None:
+        parts.append(f"blinks={int(blinks[0])}@{float(blinks[1])!r}")
+    dirs = [os.path.abspath(d) for d in lexicon]
+    if dirs:
+        parts.append("lexicon=" + "|".join(dirs))
+    return ";".join(parts)
+
+
+def job_fingerprint(
+    job: Job, fps: float, mode: str, motion: Mapping | None, lexicon: Iterable = ()
+) -> str:
+    """:func:`fingerprint` of ``job`` realized with these options (the ``lexicon`` counts
+    for an ``.azee`` score only: a ``SCORE.json`` never reads it)."""
+    dirs = getattr(lexicon, "dirs", lexicon)  # a Lexicon, or its directories
+    azee = job.score.suffix.lower() == ".azee"
+    return fingerprint(fps, mode, motion, dirs if azee else ())
+
+
 def missed(rollout: Rollout) -> int:
     """Constraints out of tolerance plus findings (what ``--strict`` fails on)."""
     bad = sum(not t.ok for t in rollout.traces)
@@ -186,10 +232,11 @@ def _realize_file(job, fps, mode, solver, lexicon, progress, motion=None) -> tup
     from azee_mj.timeline import at_tempo, realize
 
     motion = dict(motion or {})
+    options = job_fingerprint(job, fps, mode, motion, lexicon)
     score = read_score(job.score, lexicon)
     rollout = realize(score, fps=fps, mode=mode, solver=solver, progress=progress, **motion)
     score = at_tempo(score, motion.get("tempo", 1.0), 0.0)
-    save_rollout(job.output, rollout, inputs=(job.score,))
+    save_rollout(job.output, rollout, inputs=(job.score,), options=options)
     if job.report is not None:
         save_json(job.report, rollout.report(), inputs=(job.score, job.output))
     return score, rollout

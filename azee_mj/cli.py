@@ -233,7 +233,7 @@ class _Progress:
 
 
 def _cmd_realize(args, run: _Run) -> int:
-    from azee_mj.batch import missed, summary_lines
+    from azee_mj.batch import fingerprint, missed, summary_lines
     from azee_mj.check import rollout_verdict, verdict_lines
     from azee_mj.files import save_json
     from azee_mj.rollout_io import save_rollout
@@ -273,7 +273,16 @@ def _cmd_realize(args, run: _Run) -> int:
             progress=_Progress("realize"),
             **motion,
         )
-    save_rollout(args.output, rollout, inputs=(path,))
+    azee = Path(path).suffix.lower() == ".azee"
+    options = fingerprint(
+        args.fps,
+        args.mode,
+        motion,
+        (args.lexicon or ()) if azee else (),
+        dynamics=args.dynamics,
+        blinks=None if args.blinks is None else (args.blinks, args.blink_rate),
+    )
+    save_rollout(args.output, rollout, inputs=(path,), options=options)
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
     # the penetration verdict 'check --score' would say of this rollout, said here too
@@ -651,8 +660,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--resume",
         action="store_true",
-        help="skip the scores whose output (and report) exist, are newer than the score and "
-        "validate: finish a stopped batch",
+        help="skip the scores whose output (and report) exist, are newer than the score, "
+        "validate and were realized with the same options (fps, mode, rest, tempo, ...): "
+        "finish a stopped batch",
     )
     r.add_argument(
         "--manifest",

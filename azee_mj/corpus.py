@@ -5,8 +5,9 @@
   (``.csv``), a row appended as each score ends, so a stopped batch's manifest says what it
   finished.
 * Resuming (:func:`resume`): a score whose output (and report) exist, are not older than
-  the score file and validate is done and is not realized again; the temporary files a
-  killed batch left beside its outputs are removed.
+  the score file, validate and were realized with the same options (the fingerprint of
+  :func:`~azee_mj.batch.fingerprint` the file records) is done and is not realized again;
+  the temporary files a killed batch left beside its outputs are removed.
 * A progress bar on a terminal (:class:`Progress`: scores done, failed, rate, time left),
   nothing on a file or pipe; and the one-line summary at the end (:func:`summary`).
 
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Self
 
-from azee_mj.batch import Job, Outcome, read_score, realize_many
+from azee_mj.batch import Job, Outcome, job_fingerprint, read_score, realize_many
 from azee_mj.errors import AzeeError, InputFileError, printable, shorten
 from azee_mj.files import atomic_path
 
@@ -47,13 +48,15 @@ FIELDS = (
     "wall_s",
     "cpu_s",
     "worker",
+    "options",
 )
 #: A row's ``status``: realized now or in an earlier run, or failed (``error`` says why).
 DONE, FAILED = "done", "failed"
 
 
-def row(outcome: Outcome, fps: float) -> dict:
-    """The manifest row of an outcome (numbers ``None`` for a failed score)."""
+def row(outcome: Outcome, fps: float, options: str = "") -> dict:
+    """The manifest row of an outcome (numbers ``None`` for a failed score); ``options``:
+    the fingerprint of the options it was realized with."""
     j, ok = outcome.job, outcome.ok
     return {
         "input": str(j.score),
@@ -69,6 +72,7 @@ def row(outcome: Outcome, fps: float) -> dict:
         "wall_s": round(outcome.wall, 4),
         "cpu_s": round(outcome.cpu, 4),
         "worker": outcome.worker,
+        "options": options,
     }
 
 
@@ -173,11 +177,19 @@ def _fresh(output: Path, score: Path) -> bool:
         return False
 
 
-def done_row(job: Job, nq: int, fps: float, lexicon=(), earlier: dict | None = None) -> dict | None:
+def done_row(
+    job: Job,
+    nq: int,
+    fps: float,
+    lexicon=(),
+    earlier: dict | None = None,
+    options: str | None = None,
+) -> dict | None:
     """The manifest row of a job finished by an earlier run, ``None`` if it must be
-    realized: its output (and report) must exist, be no older than the score, and
-    validate, at ``fps``. The earlier run's row is kept when there is one."""
-    from azee_mj.rollout_io import load_rollout
+    realized: its output (and report) must exist, be no older than the score, validate, at
+    ``fps``, and record the options fingerprint ``options`` (None: not compared). The
+    earlier run's row is kept when there is one."""
+    from azee_mj.rollout_io import load_rollout, rollout_options
 
     if not _fresh(job.output, job.score):
         return None
@@ -191,8 +203,11 @@ def done_row(job: Job, nq: int, fps: float, lexicon=(), earlier: dict | None = N
         return None
     if abs(rollout.fps - fps) > 1e-9 * fps:
         return None
+    if options is not None and rollout_options(job.output) != options:
+        return None
+    mine = {"input": str(job.score), "output": str(job.output), "options": options or ""}
     if earlier is not None and earlier.get("status") == DONE:
-        return {**earlier, "input": str(job.score), "output": str(job.output)}
+        return {**earlier, **mine}
     try:
         duration: float | None = read_score(job.score, lexicon).duration
     except AzeeError:
@@ -212,20 +227,29 @@ def done_row(job: Job, nq: int, fps: float, lexicon=(), earlier: dict | None = N
         "wall_s": None,
         "cpu_s": None,
         "worker": None,
+        "options": options or "",
     }
 
 
 def resume(
-    jobs: Sequence[Job], nq: int, fps: float, lexicon=(), manifest: Sequence[dict] = ()
+    jobs: Sequence[Job],
+    nq: int,
+    fps: float,
+    lexicon=(),
+    manifest: Sequence[dict] = (),
+    mode: str = "multitrack",
+    motion: Mapping | None = None,
 ) -> tuple[list[Job], list[dict]]:
     """Split ``jobs`` into those still to realize and the manifest rows of those done by
-    an earlier run (see :func:`done_row`; ``manifest`` holds that run's rows); first
-    removes the temporary files a killed run left for every job."""
+    an earlier run with the same options (``fps``, ``mode``, ``motion``, the ``lexicon``
+    of an ``.azee`` score; see :func:`done_row`; ``manifest`` holds that run's rows);
+    first removes the temporary files a killed run left for every job."""
     earlier = {r.get("output"): r for r in manifest}
     todo, kept = [], []
     for job in jobs:
         remove_temporaries_of(job)
-        r = done_row(job, nq, fps, lexicon, earlier.get(str(job.output)))
+        options = job_fingerprint(job, fps, mode, motion, tuple(map(str, lexicon)))
+        r = done_row(job, nq, fps, lexicon, earlier.get(str(job.output)), options)
         if r is None:
             todo.append(job)
         else:
@@ -343,7 +367,10 @@ def realize_corpus(
     the temporary files of the jobs not finished before it propagates."""
     out, err = out or sys.stdout, err or sys.stderr
     earlier = read_manifest(manifest) if manifest is not None and resume_run else []
-    todo, kept = resume(jobs, nq, fps, lexicon, earlier) if resume_run else (list(jobs), [])
+    lex = tuple(map(str, lexicon))
+    todo, kept = (
+        resume(jobs, nq, fps, lex, earlier, mode, motion) if resume_run else (list(jobs), [])
+    )
     bar = Progress(len(jobs), len(kept), err)
     t0 = time.perf_counter()
     with contextlib.ExitStack() as stack:
@@ -359,7 +386,7 @@ def realize_corpus(
             else:
                 print(f"azee-mj: error: {printable(o.error)}", file=err, flush=True)
             if sheet is not None:
-                sheet.add(row(o, fps))
+                sheet.add(row(o, fps, job_fingerprint(o.job, fps, mode, motion, lex)))
             bar.update(o)
 
         try:

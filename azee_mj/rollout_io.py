@@ -174,12 +174,37 @@ def _dynamic(r: Rollout, numeric, text, bad) -> DynamicRollout:
     )
 
 
-def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=()) -> None:
-    """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace)."""
+def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=(), options: str = "") -> None:
+    """Write ``rollout`` to ``path`` atomically (``inputs``: files it may not replace);
+    ``options``, the realization options' fingerprint
+    (:func:`azee_mj.batch.fingerprint`), is kept in the file (member ``options``) when
+    given, for ``--resume`` to compare (:func:`rollout_options`)."""
     arrays = rollout_arrays(rollout, lazy=True)
     if isinstance(rollout, DynamicRollout):
         arrays |= dynamic_arrays(rollout)
+    if options:
+        arrays["options"] = np.array(options)
     save_npz(path, arrays, inputs)
+
+
+#: The longest options fingerprint :func:`rollout_options` reads [bytes].
+MAX_OPTIONS = 1 << 16
+
+
+def rollout_options(path: str | os.PathLike) -> str | None:
+    """The options fingerprint the rollout file at ``path`` records (see
+    :func:`save_rollout`), ``None`` if it records none (written before fingerprints, or
+    by a program that gave none) or cannot be read."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            info = zf.getinfo("options.npy")
+            if info.file_size > MAX_OPTIONS:
+                return None
+            with zf.open(info) as f:
+                a = np.lib.format.read_array(f, allow_pickle=False)
+    except (KeyError, OSError, ValueError, zipfile.BadZipFile, EOFError):
+        return None
+    return str(a) if a.shape == () and a.dtype.kind == "U" else None
 
 
 #: Arrays read lazily, a block of frames at a time (when stored as C-order float64).

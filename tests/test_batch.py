@@ -16,11 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from azee_mj.batch import Job, Outcome, plan, realize_many
+from azee_mj.batch import Job, Outcome, fingerprint, plan, realize_many
+from azee_mj.blend import REST_HOLD
 from azee_mj.cli import main
 from azee_mj.corpus import FIELDS, Manifest, Progress, read_manifest, remove_temporaries_of
 from azee_mj.errors import AzeeError
 from azee_mj.lifeline import alive, start_time
+from azee_mj.rollout_io import rollout_options
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).parent / "data"
@@ -281,6 +283,50 @@ def test_sigterm_then_resume_finishes_with_no_score_done_twice(tmp_path, capsys)
     alone = tmp_path / "alone.npz"
     assert main(["realize", str(src / "s1.json"), "-o", str(alone)]) == 0
     _same(alone, out / "s1.npz")
+
+
+def test_resume_realizes_again_what_other_options_made(tmp_path, capsys):
+    src, out, signs = tmp_path / "src", tmp_path / "out", tmp_path / "signs"
+    for d in (src, out, signs):
+        d.mkdir()
+    (src / "good.json").write_text(GOOD.read_text())
+    (src / "five.azee").write_text(":nb-5\n")
+    manifest = tmp_path / "m.csv"
+    # one score alone, as a batch would realize it: its options are the batch's
+    assert main(["realize", str(GOOD), "-o", str(out / "good.npz"), "--fps", "25"]) == 0
+    base = ["realize", str(src), "-o", str(out), "--fps", "25", "--jobs", "1"]
+    base += ["--manifest", str(manifest), "--resume"]
+
+    def run(*extra: str) -> set[str]:
+        """The outputs a resumed batch with ``extra`` options realized again."""
+        capsys.readouterr()
+        assert main([*base, *extra]) == 0
+        heads = [x for x in capsys.readouterr().out.splitlines() if not x.startswith(" ")]
+        return {Path(x.split(":")[0]).name for x in heads}
+
+    assert run() == {"five.npz"}
+    assert run() == set()
+    plain = fingerprint(25.0)
+    assert rollout_options(out / "good.npz") == rollout_options(out / "five.npz") == plain
+    assert {r["options"] for r in read_manifest(manifest)} == {plain}
+    for extra in (["--tempo", "2"], ["--no-rest"], ["--rest-hold", "1.5"], ["--mode", "flattened"]):
+        assert run(*extra) == {"good.npz", "five.npz"}, extra
+        assert run(*extra) == set(), extra
+    now = fingerprint(25.0, "flattened")
+    assert {r["options"] for r in read_manifest(manifest)} == {now}
+    assert now == f"fps=25.0;mode=flattened;rest=1;hold={REST_HOLD!r};tempo=1.0"
+    # sign directories count for an expression only, which is compiled with them
+    lexicon = ["--mode", "flattened", "--lexicon", str(signs)]
+    assert run(*lexicon) == {"five.npz"}
+    assert rollout_options(out / "five.npz") == fingerprint(25.0, "flattened", lexicon=[signs])
+    assert run(*lexicon) == set()
+    # a rollout that records no options (written before they were recorded) is made again
+    with np.load(out / "good.npz") as z:
+        np.savez(out / "good.npz", **{k: z[k] for k in z.files if k != "options"})
+    assert rollout_options(out / "good.npz") is None
+    assert run(*lexicon) == {"good.npz"}
+    assert fingerprint(25.0, dynamics=True) != plain
+    assert fingerprint(25.0, blinks=(3, 17.0)) != fingerprint(25.0, blinks=(4, 17.0))
 
 
 @pytest.mark.parametrize(

@@ -244,17 +244,27 @@ def constraint_traces(
 
 def residuals(solver: ik.Solver, q: np.ndarray, items) -> list[np.ndarray]:
     """Per ``(constraint, frames)`` of ``items``, its residual at each of those frames of
-    ``q`` (T, nq): the kinematics of each frame run once for every constraint."""
+    ``q`` (T, nq): the kinematics of each frame run once for every constraint. A sweep over
+    the frames in order with the constraints whose frames hold them (a table of every
+    frame's constraints took about 200 bytes a frame, 36 MB for an hour at 50 fps)."""
     out = [np.empty(len(span)) for _, span in items]
-    by_frame: dict[int, list[int]] = {}
-    for j, (_, span) in enumerate(items):
-        for f in span:
-            by_frame.setdefault(f, []).append(j)
-    for f in sorted(by_frame):
+    spans = sorted((span.start, j) for j, (_, span) in enumerate(items) if len(span))
+    active: list[int] = []
+    nxt, f = 0, 0
+    while nxt < len(spans) or active:
+        if not active:
+            f = max(f, spans[nxt][0])
+        while nxt < len(spans) and spans[nxt][0] <= f:
+            active.append(spans[nxt][1])
+            nxt += 1
+        active = sorted(j for j in active if f < items[j][1].stop)
+        if not active:
+            continue
         k = solver.at(q[f])
-        for j in by_frame[f]:
+        for j in active:
             ic, span = items[j]
             out[j][f - span.start] = ic.residual(k)
+        f += 1
     return out
 
 

@@ -5,8 +5,10 @@
 Builds scores of about the given durations [s] by chaining the bundled examples (each
 example's root becomes a ``sync`` child, 0.1 s apart, repeated), realizes each at 50 fps in
 a fresh process (``python -m azee_mj.cli realize``, which also saves the rollout) and reads
-that process's peak resident set size (``wait4``) and its realization time (the summary
-line's); with ``--check``, also ``azee-mj check`` on the rollout. Reports the real-time
+that process's peak resident set size (``/usr/bin/time -f %M`` where it exists, else
+``wait4``: the same kernel figure) and its realization time (the summary line's); with
+``--check``, also ``azee-mj check`` on the rollout. The load average before and after
+each run is kept: on a shared machine it says how much of a core the run had. Reports the real-time
 factor (seconds of score per second of realization), the growth of the peak per minute of
 score between the first duration of 300 s or more and the last, and writes
 bench/results/memory.json. Targets (issue 25): a 60-minute score under 400 MB peak, growth
@@ -27,6 +29,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "bench"))
+
+from machine import machine
+
 SIGNS = ["bien", "pointing", "arbre", "armoire", "info-about", "penser", "nicht-sondern"]
 
 
@@ -59,17 +65,23 @@ def long_score(duration: float) -> dict:
     }
 
 
+TIME = Path("/usr/bin/time")
+
+
 def _run(argv: list[str]) -> tuple[int, float, float, str]:
     """Exit status, peak RSS [MB], wall time [s] and first output line of a fresh process."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1")
+    cmd = [sys.executable, "-m", "azee_mj.cli", *argv]
+    timed = TIME.exists()
+    if timed:  # GNU time prints the peak [kB] as the last line of its standard error
+        cmd = [str(TIME), "-f", "%M", *cmd]
     t0 = time.perf_counter()
-    p = subprocess.Popen(
-        [sys.executable, "-m", "azee_mj.cli", *argv], env=env, stdout=subprocess.PIPE, text=True
-    )
-    _, status, usage = os.wait4(p.pid, 0)
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = p.communicate()
     wall = time.perf_counter() - t0
-    out = p.stdout.read().splitlines() if p.stdout else []
-    return os.waitstatus_to_exitcode(status), usage.ru_maxrss / 1024, wall, out[0] if out else ""
+    peak = float(err.strip().splitlines()[-1]) / 1024 if timed else float("nan")
+    lines = out.splitlines()
+    return p.returncode, peak, wall, lines[0] if lines else ""
 
 
 def measure(duration: float, tmp: Path, check: bool) -> dict:
@@ -77,6 +89,7 @@ def measure(duration: float, tmp: Path, check: bool) -> dict:
     path = tmp / f"long{duration:g}.json"
     path.write_text(json.dumps(score))
     out = tmp / f"long{duration:g}.npz"
+    load = os.getloadavg()[0]
     code, peak, wall, line = _run(["realize", str(path), "-o", str(out)])
     m = re.search(r"in ([0-9.]+) s;", line)
     realize_s = float(m.group(1)) if m else float("nan")
@@ -89,6 +102,8 @@ def measure(duration: float, tmp: Path, check: bool) -> dict:
         "real_time_factor": score["root"]["end"] / realize_s,
         "file_mb": out.stat().st_size / 1e6 if out.exists() else None,
         "summary": line,
+        "load_before": load,
+        "load_after": os.getloadavg()[0],
     }
     if check:
         code, peak, wall, _ = _run(["check", str(out)])
@@ -99,7 +114,7 @@ def measure(duration: float, tmp: Path, check: bool) -> dict:
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--durations", type=float, nargs="+", default=[60, 300, 900, 1800, 3600])
+    ap.add_argument("--durations", type=float, nargs="+", default=[300, 900, 1800, 3600])
     ap.add_argument("--check", action="store_true", help="also time azee-mj check")
     ap.add_argument("--markdown", action="store_true")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "memory.json"))
@@ -112,7 +127,8 @@ def main():
             print(
                 f"{r['duration_s']:7.1f} s: peak {r['peak_rss_mb']:6.1f} MB, realized in "
                 f"{r['realize_s']:6.1f} s ({r['real_time_factor']:.2f}x real time), wall "
-                f"{r['wall_s']:6.1f} s, exit {r['exit']}"
+                f"{r['wall_s']:6.1f} s, exit {r['exit']}, load {r['load_before']:.1f} -> "
+                f"{r['load_after']:.1f}"
                 + (
                     f"; check {r['check_peak_rss_mb']:.0f} MB {r['check_wall_s']:.1f} s"
                     if args.check
@@ -128,7 +144,7 @@ def main():
         growth = (b["peak_rss_mb"] - a["peak_rss_mb"]) / ((b["duration_s"] - a["duration_s"]) / 60)
     rtf = [r["real_time_factor"] for r in rows]
     result = {
-        "machine": {"load_average_after": os.getloadavg()},
+        "machine": machine(load_average_after=os.getloadavg()),
         "rows": rows,
         "growth_mb_per_score_minute": growth,
         "rtf_last_over_first": rtf[-1] / rtf[0] if rtf else None,
@@ -140,12 +156,13 @@ def main():
         f"{result['rtf_last_over_first']}"
     )
     if args.markdown:
-        print("| score [s] | peak RSS [MB] | realize [s] | x real time | rollout file [MB] |")
-        print("| --- | --- | --- | --- | --- |")
+        print("| score [s] | peak RSS [MB] | realize [s] | x real time | file [MB] | load |")
+        print("| --- | --- | --- | --- | --- | --- |")
         for r in rows:
             print(
                 f"| {r['duration_s']:.1f} | {r['peak_rss_mb']:.0f} | {r['realize_s']:.1f} | "
-                f"{r['real_time_factor']:.2f} | {r['file_mb']:.1f} |"
+                f"{r['real_time_factor']:.2f} | {r['file_mb']:.1f} | "
+                f"{r['load_before']:.1f} -> {r['load_after']:.1f} |"
             )
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import re
 import signal
 import socket
 import threading
@@ -240,6 +241,46 @@ def _realize_file(job, fps, mode, solver, lexicon, progress, motion=None) -> tup
     if job.report is not None:
         save_json(job.report, rollout.report(), inputs=(job.score, job.output))
     return score, rollout
+
+
+#: The random part of a temporary file's name (:func:`tempfile.mkstemp`'s).
+_RANDOM = re.compile(r"[a-z0-9_]{8}")
+
+
+def remove_temporaries_of(*jobs: Job) -> int:
+    """Remove the temporary files killed workers left for the outputs of ``jobs`` (the
+    hidden ``.NAME.XXXXXXXX.SUFFIX`` files of :func:`azee_mj.files.atomic_path`), reading
+    each output directory once; how many."""
+    names: dict[Path, set[str]] = {}
+    for job in jobs:
+        for out in (job.output, job.report):
+            if out is not None:
+                real = Path(os.path.realpath(out))
+                names.setdefault(real.parent, set()).add(real.name)
+    n = 0
+    for folder, mine in names.items():
+        try:
+            entries = os.listdir(folder)
+        except OSError:
+            continue
+        for entry in entries:
+            if entry.startswith(".") and _temporary_of(entry) in mine:
+                with contextlib.suppress(OSError):
+                    os.unlink(folder / entry)
+                    n += 1
+    return n
+
+
+def _temporary_of(entry: str) -> str | None:
+    """The output name whose temporary file ``entry`` (``.NAME.XXXXXXXX.SUFFIX``, SUFFIX
+    the output's own) would be, or None."""
+    for suffix in {Path(entry).suffix, ""}:
+        core = entry[1 : len(entry) - len(suffix)]
+        name = core[:-9]
+        random = len(core) > 9 and core[-9] == "." and _RANDOM.fullmatch(core[-8:])
+        if random and Path(name).suffix == suffix:
+            return name
+    return None
 
 
 # -- the worker side: one solver and one lexicon per worker thread -----------------------
@@ -496,4 +537,7 @@ def realize_many(
         done[i] = outcome
         if on_done is not None:
             on_done(outcome, len(done))
+    # A worker that died (killed, out of memory) while writing left its temporary file;
+    # its job ran again elsewhere. Every job has ended: none is being written now.
+    remove_temporaries_of(*jobs)
     return [done[i] for i in range(len(jobs))]

@@ -61,7 +61,8 @@ class Key:
 
     start: float
     end: float
-    q: np.ndarray  # (nq,) the component's solved posture (only this track's joints count)
+    q: np.ndarray  # (nq,) the component's solved posture (only this track's joints count;
+    # read only: the keys of a component's tracks share it)
     cons: tuple  # ik constraints of the component (hard), for frames inside this key
     free: tuple[str, ...]  # joints of the component
     relax: bool = False  # a return to neutral: it blends from its start, not before it

@@ -8,6 +8,7 @@ is a finding.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 
 import mujoco
 import numpy as np
@@ -74,12 +75,13 @@ def check_poses(
     *,
     penetration_limit: float = PENETRATION_LIMIT,
     range_tol: float = 1e-6,
-    allowed: frozenset[tuple[str, str]] | dict[int, frozenset] = frozenset(),
+    allowed: frozenset[tuple[str, str]] | Mapping[int, frozenset] = frozenset(),
 ) -> PoseReport:
     """Check postures ``qpos`` (nq,) or (T, nq) of ``model``.
 
     ``allowed`` holds body-name pairs (either order) whose contact is wanted (a contact
-    constraint brings them together), or a dict frame -> such pairs; their penetration is
+    constraint brings them together), or a mapping frame -> such pairs (e.g.
+    :func:`~azee_mj.schedule.contact_pairs`); their penetration is
     not a finding.
     """
     q = np.atleast_2d(np.asarray(qpos, float))
@@ -93,7 +95,9 @@ def check_poses(
     pens: list[Penetration] = []
     viol: list[RangeViolation] = []
     max_depth = np.zeros(len(q))
-    finite = np.isfinite(q).all(axis=1)
+    finite = np.ones(len(q), bool)
+    for a in range(0, len(q), 4096):  # a block at a time: no (T, nq) mask
+        finite[a : a + 4096] = np.isfinite(q[a : a + 4096]).all(axis=1)
     for f, qf in enumerate(q):
         if not finite[f]:
             continue
@@ -105,7 +109,7 @@ def check_poses(
         d.qpos[:] = qf
         mujoco.mj_kinematics(model, d)
         mujoco.mj_collision(model, d)
-        ok = allowed.get(f, frozenset()) if isinstance(allowed, dict) else allowed
+        ok = allowed.get(f, frozenset()) if isinstance(allowed, Mapping) else allowed
         for i in range(d.ncon):
             c = d.contact[i]
             depth = -float(c.dist)
@@ -125,7 +129,7 @@ def check_rollout(
     qpos: np.ndarray,
     site_pos: np.ndarray,
     *,
-    allowed: frozenset[tuple[str, str]] | dict[int, frozenset] = frozenset(),
+    allowed: frozenset[tuple[str, str]] | Mapping[int, frozenset] = frozenset(),
 ) -> PoseReport:
     """:func:`check_poses` of a rollout's postures, with the frames whose stored site
     positions ``site_pos`` (T, S, 3) [m] are not finite as findings too (every export
@@ -138,7 +142,7 @@ def check_rollout(
 def rollout_verdict(model: mujoco.MjModel, rollout, score=None, solver=None) -> PoseReport:
     """The one verdict on a rollout's postures that ``realize`` and ``check`` both say:
     :func:`check_rollout` with the contacts ``score`` asks for allowed (none without it)."""
-    allowed: frozenset | dict = frozenset()
+    allowed: frozenset | Mapping = frozenset()
     if score is not None:
         from azee_mj.schedule import contact_pairs
 

@@ -21,7 +21,6 @@ import csv
 import io
 import json
 import os
-import re
 import sys
 import time
 from collections.abc import Iterable, Mapping, Sequence
@@ -29,7 +28,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Self
 
-from azee_mj.batch import Job, Outcome, job_fingerprint, read_score, realize_many
+from azee_mj.batch import (
+    Job,
+    Outcome,
+    job_fingerprint,
+    read_score,
+    realize_many,
+    remove_temporaries_of,
+)
 from azee_mj.errors import AzeeError, InputFileError, printable, shorten
 from azee_mj.files import atomic_path
 
@@ -142,34 +148,6 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
     return out
 
 
-_TEMP_NAME = r"\.{name}\.[a-z0-9_]{{8}}{suffix}"
-
-
-def remove_temporaries_of(job: Job) -> int:
-    """Remove the temporary files a killed worker left for ``job``'s outputs (the hidden
-    ``.NAME.XXXXXXXX.SUFFIX`` files of :func:`azee_mj.files.atomic_path`); how many."""
-    n = 0
-    for out in (job.output, job.report):
-        if out is None:
-            continue
-        real = Path(os.path.realpath(out))
-        pattern = re.compile(
-            _TEMP_NAME.format(name=re.escape(real.name), suffix=re.escape(real.suffix))
-        )
-        try:
-            names = os.listdir(real.parent)
-        except OSError:
-            continue
-        for name in names:
-            if pattern.fullmatch(name):
-                try:
-                    os.unlink(real.parent / name)
-                    n += 1
-                except OSError:
-                    pass
-    return n
-
-
 def _fresh(output: Path, score: Path) -> bool:
     try:
         return output.stat().st_mtime >= score.stat().st_mtime
@@ -246,8 +224,8 @@ def resume(
     first removes the temporary files a killed run left for every job."""
     earlier = {r.get("output"): r for r in manifest}
     todo, kept = [], []
+    remove_temporaries_of(*jobs)
     for job in jobs:
-        remove_temporaries_of(job)
         options = job_fingerprint(job, fps, mode, motion, tuple(map(str, lexicon)))
         r = done_row(job, nq, fps, lexicon, earlier.get(str(job.output)), options)
         if r is None:
@@ -401,8 +379,7 @@ def realize_corpus(
                 motion=motion,
             )
         except BaseException:
-            for j in todo:
-                remove_temporaries_of(j)
+            remove_temporaries_of(*todo)
             raise
         finally:
             bar.close()

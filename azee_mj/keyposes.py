@@ -299,7 +299,7 @@ class KeyPoser:
         for h in (holds[i] for i in holds_at.at(t0)):
             at = sched.by_path[h.hold_of].end
             for t in sched.held_tracks(h) - held:
-                q = self.posture_at(keys[t], at).copy()
+                q = self.posture_at(keys[t], at)  # keys' postures are never changed
                 self.take(state, (t,), q)
                 keys[t].append(Key(t0, t1, q, (), sched.track_joints[t]))
                 held.add(t)
@@ -336,11 +336,12 @@ class KeyPoser:
             if not s.converged:
                 free = self.diagnose_free.pop(id(s), s.free)
                 self.diagnose(dataclasses.replace(s, free=free), before, t0)
+            q = s.qpos.copy()  # one posture for the keys of all the group's tracks
             for t in group:
                 self.take(state, (t,), s.qpos)
                 if keys[t] and keys[t][-1].start == t0:
                     keys[t].pop()  # recruited after all: no return to neutral here
-                keys[t].append(Key(t0, t1, s.qpos.copy(), s.cons, s.free))
+                keys[t].append(Key(t0, t1, q, s.cons, s.free))
 
     def diagnose(self, s: GroupSolve, start: np.ndarray, t0: float) -> None:
         """Why solve ``s`` (from ``start`` at ``t0`` [s]) misses its constraints, into
@@ -482,4 +483,4 @@ class KeyPoser:
             if np.allclose(keys[t][-1].q[d], sched.home[d], atol=SAME_POSTURE):
                 continue
             state[d] = sched.home[d]
-            keys[t].append(Key(t0, t1, sched.home.copy(), (), sched.track_joints[t], relax=True))
+            keys[t].append(Key(t0, t1, sched.home, (), sched.track_joints[t], relax=True))

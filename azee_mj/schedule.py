@@ -31,6 +31,7 @@ __all__ = [
     "Compiler",
     "ContactWindow",
     "DrivenConstraint",
+    "FramePairs",
     "Mode",
     "Schedule",
     "TrackInterval",
@@ -472,22 +473,50 @@ def schedule(
     return Schedule(score, solver or make_solver()).intervals()
 
 
+class FramePairs(Mapping):
+    """Frame -> the body-name pairs (a frozenset) that contact constraints active then
+    bring together, for the frames that have some. A frame's pairs are gathered when asked
+    from the contacts' frame spans (a table of every frame's pairs took hundreds of bytes
+    a frame of contact: tens of MB over an hour of score)."""
+
+    def __init__(self, spans: dict[tuple[int, int], frozenset[tuple[str, str]]]):
+        #: (first frame, frame after the last) -> the pairs brought together over them.
+        self.spans = [(a, b, v) for (a, b), v in spans.items() if a < b]
+        self._index = IntervalIndex((a, b) for a, b, _ in self.spans)
+
+    def __getitem__(self, frame: int) -> frozenset[tuple[str, str]]:
+        if not isinstance(frame, int | np.integer):
+            raise KeyError(frame)
+        held = self._index.at(int(frame))
+        if not held:
+            raise KeyError(frame)
+        if len(held) == 1:
+            return self.spans[held[0]][2]
+        return frozenset().union(*(self.spans[i][2] for i in held))
+
+    def __iter__(self):
+        return iter(sorted({f for a, b, _ in self.spans for f in range(a, b)}))
+
+    def __len__(self) -> int:
+        return len({f for a, b, _ in self.spans for f in range(a, b)})
+
+
 def contact_pairs(
     score: sc.Score | str | Mapping,
     times: np.ndarray,
     solver: ik.Solver | None = None,
     score_start: float = 0.0,
-) -> dict[int, frozenset[tuple[str, str]]]:
+) -> FramePairs:
     """Frame -> body-name pairs that a contact constraint active then brings together, on
     frames at ``times`` [s] (a rollout's clock, the score's time 0 at ``score_start``)."""
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     r = Schedule(score, solver or make_solver())
-    out: dict[int, set[tuple[str, str]]] = {}
+    spans: dict[tuple[int, int], set[tuple[str, str]]] = {}
     fps = (len(times) - 1) / times[-1] if len(times) > 1 and times[-1] > 0 else 1.0
     lead = round(score_start * fps)
     for w in r.contacts:
-        for f in frame_range(w.start, w.end, fps, len(times) - lead):
-            f += lead
-            out.setdefault(int(f), set()).add((r.body_names[w.body], r.body_names[w.other]))
-    return {f: frozenset(v) for f, v in out.items()}
+        f = frame_range(w.start, w.end, fps, len(times) - lead)
+        pair = (r.body_names[w.body], r.body_names[w.other])
+        spans.setdefault((f.start + lead, f.stop + lead), set()).add(pair)
+    return FramePairs({k: frozenset(v) for k, v in spans.items()})

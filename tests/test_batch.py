@@ -371,6 +371,9 @@ def test_a_worker_that_dies_costs_no_score(tmp_path):
     for k in range(4):
         _chain(src / f"s{k}.json", copies=3)
     manifest = tmp_path / "m.csv"
+    # What a worker killed while writing leaves (whether the kill below lands in a write is
+    # chance): the batch removes it once every job has ended.
+    (out / ".s2.npz.abcd1234.npz").write_text("partial")
     p = _cli(src, "-o", out, "--jobs", "2", "--manifest", manifest)
     try:
         _wait_line(p)

@@ -9,8 +9,10 @@ rules whose arguments are scores (``:seq``, ``:info-about``, ``:side-by-side``, 
 deep as the count allows. The same seed gives the same corpus. Every configuration
 realizes the whole corpus at 50 fps with :func:`azee_mj.batch.realize_many` (outputs
 written, then deleted): ``pool-1`` in this process, ``pool-2`` a pool of two worker
-processes, ``dask-W`` a Dask ``LocalCluster`` of W one-thread worker processes (its start
-timed apart). Reports scores per second, per core, and the Dask overhead per score; writes
+processes, ``dask-W`` a Dask ``LocalCluster`` of W one-thread worker processes (started
+once, its start timed apart). The corpus is cut into ``--rounds`` slices and every
+configuration realizes a slice in turn, so that other work on a shared machine weighs on
+all configurations alike. Reports scores per second, per core, and the Dask overhead per score; writes
 bench/results/corpus.json. Targets (issue 25): Dask's throughput per core within 10 % of
 the pool's; two workers >= 1.8x one.
 """
@@ -22,7 +24,6 @@ import json
 import os
 import platform
 import random
-import shutil
 import statistics
 import sys
 import tempfile
@@ -112,58 +113,69 @@ def write_corpus(n: int, seed: int, folder: Path) -> list[Path]:
     return paths
 
 
-def run(config: str, paths: list[Path], tmp: Path) -> dict:
-    """Realize ``paths`` with ``config`` (pool-W or dask-W); its timings."""
-    kind, w = config.split("-")
-    workers = int(w)
-    out = tmp / f"out-{config}"
-    out.mkdir()
-    jobs = plan(paths, out)
-    startup = 0.0
-    if kind == "dask":
-        import logging
+class Runner:
+    """One configuration (``pool-W`` or ``dask-W``): its Dask cluster, if any, started once
+    (timed apart) and kept for every round."""
 
-        import distributed
+    def __init__(self, config: str, tmp: Path):
+        kind, w = config.split("-")
+        self.config, self.kind, self.workers = config, kind, int(w)
+        self.out = tmp / f"out-{config}"
+        self.out.mkdir()
+        self.client = self.cluster = None
+        self.startup = self.elapsed = 0.0
+        self.outcomes: list = []
+        if kind == "dask":
+            import logging
 
+            import distributed
+
+            t0 = time.perf_counter()
+            self.cluster = distributed.LocalCluster(
+                n_workers=self.workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            self.client = distributed.Client(self.cluster)
+            self.client.wait_for_workers(self.workers)
+            self.startup = time.perf_counter() - t0
+
+    def realize(self, paths: list[Path]) -> None:
+        """Realize ``paths`` (outputs deleted after), adding to the totals."""
+        jobs = plan(paths, self.out)
         t0 = time.perf_counter()
-        cluster = distributed.LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        )
-        client = distributed.Client(cluster)
-        client.wait_for_workers(workers)
-        startup = time.perf_counter() - t0
-    else:
-        client = None
-    try:
-        t0 = time.perf_counter()
-        outcomes = realize_many(jobs, workers=workers, client=client)
-        elapsed = time.perf_counter() - t0
-    finally:
-        if client is not None:
-            client.close()
-            cluster.close()
-    failed = [o for o in outcomes if not o.ok]
-    shutil.rmtree(out)
-    busy = sum(o.wall for o in outcomes)
-    return {
-        "config": config,
-        "workers": workers,
-        "scores": len(paths),
-        "failed": len(failed),
-        "first_failures": [o.error for o in failed[:3]],
-        "elapsed_s": elapsed,
-        "startup_s": startup,
-        "scores_per_s": len(paths) / elapsed,
-        "scores_per_s_per_core": len(paths) / elapsed / workers,
-        "worker_wall_s": busy,
-        "worker_cpu_s": sum(o.cpu for o in outcomes),
-        "score_s": sum(o.duration for o in outcomes),
-        "per_score_overhead_ms": 1000 * (elapsed * workers - busy) / len(paths),
-    }
+        self.outcomes += realize_many(jobs, workers=self.workers, client=self.client)
+        self.elapsed += time.perf_counter() - t0
+        for j in jobs:
+            j.output.unlink(missing_ok=True)
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.cluster.close()
+
+    def result(self) -> dict:
+        n, outcomes = len(self.outcomes), self.outcomes
+        failed = [o for o in outcomes if not o.ok]
+        busy = sum(o.wall for o in outcomes)
+        return {
+            "config": self.config,
+            "workers": self.workers,
+            "scores": n,
+            "failed": len(failed),
+            "first_failures": [o.error for o in failed[:3]],
+            "elapsed_s": self.elapsed,
+            "startup_s": self.startup,
+            "scores_per_s": n / self.elapsed,
+            "scores_per_s_per_core": n / self.elapsed / self.workers,
+            "worker_wall_s": busy,
+            "worker_cpu_s": sum(o.cpu for o in outcomes),
+            "cpu_per_score_s": sum(o.cpu for o in outcomes) / n,
+            "score_s": sum(o.duration for o in outcomes),
+            "per_score_overhead_ms": 1000 * (self.elapsed * self.workers - busy) / n,
+        }
 
 
 def machine() -> dict:
@@ -183,6 +195,12 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--configs", nargs="+", default=["pool-1", "pool-2", "dask-1", "dask-2"])
+    ap.add_argument(
+        "--rounds",
+        type=int,
+        default=2,
+        help="slices run by every config in turn (a pool starts once a slice)",
+    )
     ap.add_argument("--write-only", metavar="DIR", help="only write the scores into DIR")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "corpus.json"))
     args = ap.parse_args()
@@ -190,20 +208,34 @@ def main() -> None:
         paths = write_corpus(args.n, args.seed, Path(args.write_only))
         print(f"{len(paths)} scores written to {args.write_only}")
         return
-    rows = []
     info = machine()
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         paths = write_corpus(args.n, args.seed, tmp / "in")
-        for config in args.configs:
-            r = run(config, paths, tmp)
-            rows.append(r)
-            print(
-                f"{config}: {r['scores_per_s']:.2f} scores/s ({r['scores_per_s_per_core']:.2f} "
-                f"per core), {r['elapsed_s']:.1f} s + start {r['startup_s']:.1f} s, "
-                f"{r['failed']} failed, overhead {r['per_score_overhead_ms']:.1f} ms/score",
-                flush=True,
-            )
+        runners = [Runner(c, tmp) for c in args.configs]
+        try:
+            # Round by round, every configuration realizes the same slice of the corpus (in
+            # a turning order), so a change in the machine's other load falls on all alike.
+            size = -(-len(paths) // args.rounds)
+            for r, a in enumerate(range(0, len(paths), size)):
+                turn = runners[r % len(runners) :] + runners[: r % len(runners)]
+                for runner in turn:
+                    runner.realize(paths[a : a + size])
+                print(
+                    f"round {r + 1}: {a + size} scores, load {os.getloadavg()[0]:.1f}", flush=True
+                )
+        finally:
+            for runner in runners:
+                runner.close()
+        rows = [runner.result() for runner in runners]
+    for r in rows:
+        print(
+            f"{r['config']}: {r['scores_per_s']:.3f} scores/s ({r['scores_per_s_per_core']:.3f} "
+            f"per core), {r['elapsed_s']:.1f} s + start {r['startup_s']:.1f} s, "
+            f"CPU {r['cpu_per_score_s']:.3f} s/score, {r['failed']} failed, overhead "
+            f"{r['per_score_overhead_ms']:.1f} ms/score",
+            flush=True,
+        )
     info["load_average_after"] = os.getloadavg()
     by = {r["config"]: r for r in rows}
     ratios = {}

@@ -17,9 +17,10 @@ from azee_mj import timeline
 from azee_mj.check import check_poses
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import KeyPoser
-from azee_mj.schedule import Mode, Schedule, contact_pairs, make_solver
+from azee_mj.schedule import FramePairs, Mode, Schedule, contact_pairs, make_solver
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
+from azee_mj.timing import frame_range
 
 DATA = Path(__file__).parent / "data"
 
@@ -82,6 +83,31 @@ def test_no_penetration_at_any_frame(kinds, solver):
     allowed = contact_pairs(DATA / "kinds.json", kinds.time, score_start=kinds.score_start)
     report = check_poses(solver.model, kinds.qpos, allowed=allowed)
     assert report.clean, report.penetrations[:3]
+
+
+def test_contact_pairs_answer_each_frame_as_its_contact_windows_say(solver):
+    score = load_score(DATA / "kinds.json")
+    fps, start, n = 50.0, 0.36, 400
+    times = np.arange(n) / fps
+    allowed = contact_pairs(score, times, solver, start)
+    sched, lead = Schedule(score, solver), round(start * fps)
+    table: dict[int, set] = {}
+    for w in sched.contacts:
+        for f in frame_range(w.start, w.end, fps, n - lead):
+            table.setdefault(f + lead, set()).add(
+                (sched.body_names[w.body], sched.body_names[w.other])
+            )
+    assert table and dict(allowed) == table and len(allowed) == len(table)
+    assert all(allowed.get(f, frozenset()) == table.get(f, set()) for f in range(-2, n + 2))
+
+
+def test_frame_pairs_join_overlapping_spans_and_know_no_other_frame():
+    ab, cd = frozenset({("a", "b")}), frozenset({("c", "d")})
+    pairs = FramePairs({(0, 10): ab, (5, 15): cd, (20, 20): cd})
+    assert [pairs[f] for f in (0, 4, 5, 9, 10, 14)] == [ab, ab, ab | cd, ab | cd, cd, cd]
+    assert list(pairs) == list(range(15)) and len(pairs) == 15
+    assert pairs.get(15) is None and pairs.get(-1) is None and pairs.get("5") is None
+    assert pairs == {f: (ab if f < 5 else ab | cd if f < 10 else cd) for f in range(15)}
 
 
 def test_morphs_set_the_hand_shapes(kinds, solver):

@@ -100,14 +100,25 @@ def _parent(pid: int) -> int | None:
     return int(stat[stat.rindex(")") + 2 :].split()[1])
 
 
+_UNREAD: dict[int, bytes] = {}
+
+
 def _wait_line(p: subprocess.Popen, timeout: float = 120) -> str:
     """The first line of the next score that ends (skipping the indented lines, a missed
-    constraint's or a finding's, under the score before)."""
+    constraint's or a finding's, under the score before). Reads the pipe itself, keeping
+    what follows the line: a line already read must not wait for the next score (a
+    buffered ``readline`` may hold it while ``select`` waits for more)."""
+    fd = p.stdout.fileno()
     while True:
-        assert select.select([p.stdout], [], [], timeout)[0], "no score finished in time"
-        line = p.stdout.readline()
-        if not line.startswith(" "):
-            return line
+        rest = _UNREAD.get(p.pid, b"")
+        while b"\n" not in rest:
+            assert select.select([fd], [], [], timeout)[0], "no score finished in time"
+            chunk = os.read(fd, 65536)
+            assert chunk, "the command ended before another score did"
+            rest += chunk
+        line, _, _UNREAD[p.pid] = rest.partition(b"\n")
+        if not line.startswith(b" "):
+            return line.decode() + "\n"
 
 
 # ---------------------------------------------------------------------------------------

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import pty
+import re
 import select
 import signal
 import subprocess
@@ -214,7 +215,8 @@ def test_a_failing_score_never_stops_the_others(tmp_path, capsys):
     assert f"azee-mj: error: {bad}: GOOD.K1: constraint 1 (place): unknown site" in captured.err
     assert f"azee-mj: error: {deep}:" in captured.err
     assert captured.err.endswith(f"\nazee-mj: failed: {bad}, {deep}\n")
-    assert "azee-mj: 4 scores: 2 realized, 2 failed in 0m" in captured.err
+    # the time taken is the machine's (a loaded one may take over a minute): any is right
+    assert re.search(r"\nazee-mj: 4 scores: 2 realized, 2 failed in \d+m\d\ds\n", captured.err)
     assert sorted(p.name for p in out.iterdir()) == ["five.npz", "good.npz"]
     rows = {Path(r["input"]).name: r for r in read_manifest(manifest)}
     assert sorted(rows) == ["bad.json", "deep.azee", "five.azee", "good.json"]

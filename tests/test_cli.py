@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -198,7 +199,8 @@ def test_realize_many_reports_each_bad_score_and_finishes_the_others(tmp_path, c
         "site '@T_TPI(s)'; did you mean '@T_TIP(s)'? (azee-mj sites lists "
         "all)"
     )
-    assert summary.startswith("azee-mj: 3 scores: 2 realized, 1 failed in 0m")
+    # the time taken is the machine's (a loaded one may take over a minute): any is right
+    assert re.fullmatch(r"azee-mj: 3 scores: 2 realized, 1 failed in \d+m\d\ds", summary)
     assert failed == f"azee-mj: failed: {bad}"
     assert sorted(p.name for p in out.iterdir()) == ["good.npz", "kinds.npz"]
     assert captured.out.count("constraints within tolerance") == 2

@@ -158,8 +158,8 @@ class FrameSolver:
         times the blend's largest joint change into the frame when that is more (a
         transition the score times faster than the box moves at the speed it needs)."""
         change = np.zeros(len(curve))
-        for a in range(1, len(curve), 4096):  # a block at a time: no copy of every frame
-            b = min(a + 4096, len(curve))
+        for a in range(1, len(curve), 1024):  # a block at a time: no copy of every frame
+            b = min(a + 1024, len(curve))
             change[a:b] = np.abs(curve[a:b] - curve[a - 1 : b - 1]).max(axis=1)
         return np.maximum(self.base, STEP_MARGIN * change)
 

@@ -52,6 +52,10 @@ class Composer:
         self.unary, self.fixed, self.lists, self.digits = [], [], [], []
         for r in rules:
             kinds = [p.kind for p in r.params]
+            if any(
+                p.default is None and p.kind not in ("score", "locus", "digit") for p in r.params
+            ):
+                continue  # a required text (a mouthing's word): not composed here
             scores = [p for p in r.params if p.kind == "score"]
             if "digit" in kinds:
                 self.digits.append(r)

@@ -17,6 +17,8 @@ import itertools
 
 import numpy as np
 
+from azee_mj import constraints as cn
+from azee_mj import movement as mv
 from azee_mj import score as sc
 from azee_mj.blend import (
     BLEND_SPEED,
@@ -47,6 +49,7 @@ from azee_mj.framesolver import (
 )
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
+from azee_mj.pacing import SMOOTHING, paced, resample, smoothed
 from azee_mj.routes import arc_through, path_points
 from azee_mj.schedule import FLAT_FIXED, Mode
 from azee_mj.timing import frame_count, frame_range
@@ -80,6 +83,32 @@ __all__ = [
 
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
 FLAT_PATH_KEYS = 6
+
+
+def runs_of(flags: np.ndarray) -> list[tuple[int, int]]:
+    """Frame ranges ``(a, b)`` around each run of True in ``flags`` (T,): from the frame
+    before it (at rest) to the first frame after it, within the frames."""
+    edges = np.flatnonzero(np.diff(np.r_[False, flags, False].astype(np.int8)))
+    n = len(flags)
+    return [(max(a - 1, 0), min(b, n - 1)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def coupled(runs: list[tuple]) -> list[list[tuple]]:
+    """``runs`` ``(a, b, ...)`` grouped: those over the same frames (within one at either
+    end) together, spanning the widest."""
+    groups: list[list[tuple]] = []
+    for r in sorted(runs, key=lambda r: r[:2]):
+        for g in groups:
+            if abs(g[0][0] - r[0]) <= 1 and abs(g[0][1] - r[1]) <= 1:
+                g.append(r)
+                break
+        else:
+            groups.append([r])
+    out = []
+    for g in groups:
+        a, b = min(r[0] for r in g), max(r[1] for r in g)
+        out.append([(a, b, *r[2:]) for r in g])
+    return out
 
 
 class Motion:
@@ -146,6 +175,16 @@ class Motion:
         self.lead_frames = int(np.ceil(lead * self.fps - 1e-6))
         self.end = end if end <= sched.score.duration else np.ceil(end * self.fps) / self.fps
 
+    def curved_paths(self) -> list[tuple[float, float, str, str]]:
+        """``(start, end, arm track, site)`` of the transpaths along an arc or a circle:
+        their interval [s], the tracks of the limb and the model site that traces them."""
+        comp, out = self.schedule.comp, []
+        for b in self.schedule.blocks:
+            if b.kind is sc.BlockKind.TRANSPATH and isinstance(b.route, sc.Arc | sc.Circle):
+                site = comp.site(b.transpath_site)
+                out += [(b.start, b.end, t, site) for t in comp.site_tracks(site)]
+        return out
+
     def tie_hands(self, keys) -> None:
         """A hand shape forms while its arm travels: a hand track whose first posture starts
         with its arm's takes the arm's lead-in when that is longer."""
@@ -193,7 +232,81 @@ class Motion:
             )
         if flattened:
             return self.flat_transpaths(q, times)
-        return FrameSolver(self.adapter, self.fps).solve(q, times, moving, names, keys)
+        q = FrameSolver(self.adapter, self.fps).solve(q, times, moving, names, keys)
+        return self.pace(q, times, moving, names)
+
+    def pace(self, q: np.ndarray, times, moving: np.ndarray, names: list[str]) -> np.ndarray:
+        """Each arm's movements (its runs of blending frames, ``moving`` (T, tracks) of
+        the tracks ``names``, at ``times`` [s]) paced along their own paths
+        (:func:`~azee_mj.pacing.paced`): one speed bell between the same two frames at
+        rest, slower in the curves of a movement that follows a curved transpath (the
+        two-thirds power law). The arm's hand track goes with it; two arms moving over the
+        same frames go together (a two-handed sign), by their summed path (in place)."""
+        sched, solver = self.schedule, self.adapter.solver
+        curved = self.curved_paths()
+        runs = []
+        for ti, t in enumerate(names):
+            side = t.removeprefix("arm_")
+            site = sched.smap.sites.get(f"WR_{side}") if t.startswith("arm_") else None
+            if site is not None:
+                runs += [(a, b, t, side, site) for a, b in runs_of(moving[:, ti])]
+        for group in coupled(runs):
+            a, b = group[0][0], group[0][1]
+            tracks = [t for r in group for t in (r[2], f"hand_{r[3]}") if t in sched.track_dofs]
+            span = times[a], times[b]
+            along = [
+                s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1
+            ]
+            sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
+            new = self.paced_run(q[a : b + 1], times[a : b + 1], tracks, sids, bool(along))
+            if new is not None:
+                q[
+                    a : b + 1,
+                    self.adapter.dofs(sorted(j for t in tracks for j in sched.track_joints[t])),
+                ] = new
+        return q
+
+    def paced_run(self, run, times, tracks, sids, law: bool) -> np.ndarray | None:
+        """The joints of ``tracks`` in one movement's frames ``run`` (n, nq) at ``times``
+        paced by the path of sites ``sids`` (``law``: the last traces a curved transpath):
+        its path smoothed, or as it is; a frame paced into the body (another limb moves on
+        its own time, a smoothed corner) pushed out, nearest it. Of those that keep the
+        body out of itself as well as the frames did (within the solver's
+        ``PENETRATION_LIMIT``) and the frames themselves, the smoothest (SPARC of the
+        sites' summed speed). None: the frames, or the sites hardly move."""
+        ad, sched = self.adapter, self.schedule
+        joints = sorted(j for t in tracks for j in sched.track_joints[t])
+        d = ad.dofs(joints)
+
+        def depth(x, t):
+            k = ad.at(x)
+            return cn.penetration_depth(k.m, k.d, sched.allowed_at(t))
+
+        def smoothness(path):
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
+            sp = sum(mv.speed(pts[:, j], self.fps) for j in range(pts.shape[1]))
+            return mv.sparc(sp, self.fps) if sp.max() > 0.0 else -np.inf
+
+        deepest = max(cn.COLLISION_TOL, *(depth(x, t) for x, t in zip(run, times)))
+        best, score = None, smoothness(run)
+        for passes in (SMOOTHING, 0):
+            path = run.copy()
+            path[:, d] = smoothed(run[:, d], passes)
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
+            frames = paced(pts, pts[:, -1] if law else None)
+            if frames is None:
+                return None
+            path[:, d] = resample(path[:, d], frames)
+            for i, t in enumerate(times):
+                if depth(path[i], t) > deepest:
+                    soft = ad.soft_targets(path[i], joints)
+                    path[i] = ad.solve(soft, joints, path[i], t, restarts=0).qpos
+            limit = max(deepest, cn.PENETRATION_LIMIT)
+            if all(depth(x, t) <= limit for x, t in zip(path, times)):
+                s = smoothness(path)
+                if s > score:
+                    best, score = path[:, d], s
+        return best
 
     def carried(self, keys: dict[str, list[Key]]) -> dict[str, list[float]]:
         """Per track, the end times [s] of other tracks' keys with a constraint that names

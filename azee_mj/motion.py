@@ -22,6 +22,7 @@ from azee_mj import movement as mv
 from azee_mj import score as sc
 from azee_mj.blend import (
     BLEND_SPEED,
+    BRANCH_SPEED,
     MAX_BLEND,
     MAX_JOINT_SPEED,
     MIN_BLEND,
@@ -232,16 +233,18 @@ class Motion:
             )
         if flattened:
             return self.flat_transpaths(q, times)
-        q = FrameSolver(self.adapter, self.fps).solve(q, times, moving, names, keys)
-        return self.pace(q, times, moving, names)
+        solver = FrameSolver(self.adapter, self.fps)
+        q = solver.solve(q, times, moving, names, keys)
+        return self.pace(q, times, moving, names, solver.held_frames)
 
-    def pace(self, q: np.ndarray, times, moving: np.ndarray, names: list[str]) -> np.ndarray:
+    def pace(self, q: np.ndarray, times, moving: np.ndarray, names: list[str], held) -> np.ndarray:
         """Each arm's movements (its runs of blending frames, ``moving`` (T, tracks) of
         the tracks ``names``, at ``times`` [s]) paced along their own paths
         (:func:`~azee_mj.pacing.paced`): one speed bell between the same two frames at
         rest, slower in the curves of a movement that follows a curved transpath (the
         two-thirds power law). The arm's hand track goes with it; two arms moving over the
-        same frames go together (a two-handed sign), by their summed path (in place)."""
+        same frames go together (a two-handed sign), by their summed path. Only the
+        frames not ``held`` (T,) under a constraint are smoothed (in place)."""
         sched, solver = self.schedule, self.adapter.solver
         curved = self.curved_paths()
         runs = []
@@ -258,7 +261,11 @@ class Motion:
                 s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1
             ]
             sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
-            new = self.paced_run(q[a : b + 1], times[a : b + 1], tracks, sids, bool(along))
+            pins = [f - a for f in self.path_ends(times, tracks) if a < f < b]
+            keep = np.flatnonzero(held[a : b + 1]).tolist()
+            new = self.paced_run(
+                q[a : b + 1], times[a : b + 1], tracks, sids, bool(along), pins, keep
+            )
             if new is not None:
                 q[
                     a : b + 1,
@@ -266,47 +273,70 @@ class Motion:
                 ] = new
         return q
 
-    def paced_run(self, run, times, tracks, sids, law: bool) -> np.ndarray | None:
+    def paced_run(self, run, times, tracks, sids, law: bool, pins=(), kept=()):
         """The joints of ``tracks`` in one movement's frames ``run`` (n, nq) at ``times``
-        paced by the path of sites ``sids`` (``law``: the last traces a curved transpath):
-        its path smoothed, or as it is; a frame paced into the body (another limb moves on
-        its own time, a smoothed corner) pushed out, nearest it. Of those that keep the
-        body out of itself as well as the frames did (within the solver's
-        ``PENETRATION_LIMIT``) and the frames themselves, the smoothest (SPARC of the
-        sites' summed speed). None: the frames, or the sites hardly move."""
+        paced by the path of sites ``sids`` (``law``: the last traces a curved transpath;
+        ``pins``: frames that keep their time, see :func:`~azee_mj.pacing.paced`; ``kept``:
+        frames held under a constraint, not smoothed):
+        its path smoothed, else as it is; a frame paced into the body (another limb moves
+        on its own time, a smoothed corner) pushed out, nearest it. The first that keeps
+        the body out of itself (within the solver's ``PENETRATION_LIMIT``), turns no joint
+        faster than the frames or ``BRANCH_SPEED`` and is smoother than the frames (SPARC
+        of the sites' summed speed). None: the frames, or the sites hardly move."""
         ad, sched = self.adapter, self.schedule
         joints = sorted(j for t in tracks for j in sched.track_joints[t])
         d = ad.dofs(joints)
-
-        def depth(x, t):
-            k = ad.at(x)
-            return cn.penetration_depth(k.m, k.d, sched.allowed_at(t))
-
-        def smoothness(path):
-            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
-            sp = sum(mv.speed(pts[:, j], self.fps) for j in range(pts.shape[1]))
-            return mv.sparc(sp, self.fps) if sp.max() > 0.0 else -np.inf
-
-        deepest = max(cn.COLLISION_TOL, *(depth(x, t) for x, t in zip(run, times)))
-        best, score = None, smoothness(run)
+        at_run = np.array([ad.at(x).d.site_xpos[sids] for x in run])
+        score = self.smoothness(at_run)
+        fastest = max(np.abs(np.diff(run[:, d], axis=0)).max(), BRANCH_SPEED / self.fps)
+        kept, pins = sorted(set(pins) | set(kept)), sorted(set(pins))
         for passes in (SMOOTHING, 0):
             path = run.copy()
             path[:, d] = smoothed(run[:, d], passes)
-            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
-            frames = paced(pts, pts[:, -1] if law else None)
+            path[kept] = run[kept]  # held frames, where a transpath starts and ends
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path]) if passes else at_run
+            frames = paced(pts, pts[:, -1] if law else None, path[:, d], pins)
             if frames is None:
-                return None
+                continue
             path[:, d] = resample(path[:, d], frames)
-            for i, t in enumerate(times):
-                if depth(path[i], t) > deepest:
-                    soft = ad.soft_targets(path[i], joints)
-                    path[i] = ad.solve(soft, joints, path[i], t, restarts=0).qpos
-            limit = max(deepest, cn.PENETRATION_LIMIT)
-            if all(depth(x, t) <= limit for x, t in zip(path, times)):
-                s = smoothness(path)
-                if s > score:
-                    best, score = path[:, d], s
-        return best
+            pts = self.pushed_out(path, times, joints, sids)
+            if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
+                continue
+            if self.smoothness(pts) > score:
+                return path[:, d]
+        return None
+
+    def path_ends(self, times, tracks) -> list[int]:
+        """The frames at ``times`` where a transpath of ``tracks`` starts or ends."""
+        comp, out = self.schedule.comp, []
+        for b in self.schedule.blocks:
+            limbs = comp.site_tracks(comp.site(b.transpath_site)) if b.transpath_site else set()
+            if b.kind is sc.BlockKind.TRANSPATH and limbs & set(tracks):
+                out += np.searchsorted(times, [b.start - 1e-9, b.end - 1e-9]).tolist()
+        return out
+
+    def smoothness(self, pts: np.ndarray) -> float:
+        """SPARC of the summed speed of sites at ``pts`` (n, k, 3), one a frame."""
+        sp = sum(mv.speed(pts[:, j], self.fps) for j in range(pts.shape[1]))
+        return mv.sparc(sp, self.fps) if sp.max() > 0.0 else -np.inf
+
+    def pushed_out(self, path, times, joints, sids) -> np.ndarray | None:
+        """Frames of ``path`` (n, nq) at ``times`` that go into the body pushed out by
+        their ``joints``, nearest them (in place); the sites ``sids`` at each frame
+        (n, k, 3), or None when a frame stays deeper than ``PENETRATION_LIMIT``."""
+        ad, sched = self.adapter, self.schedule
+        pts = np.empty((len(path), len(sids), 3))
+        for i, t in enumerate(times):
+            k = ad.at(path[i])
+            allowed = sched.allowed_at(t)
+            if cn.penetration_depth(k.m, k.d, allowed) > cn.COLLISION_TOL:
+                soft = ad.soft_targets(path[i], joints)
+                path[i] = ad.solve(soft, joints, path[i], t, restarts=0).qpos
+                k = ad.at(path[i])
+                if cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT:
+                    return None
+            pts[i] = k.d.site_xpos[sids]
+        return pts
 
     def carried(self, keys: dict[str, list[Key]]) -> dict[str, list[float]]:
         """Per track, the end times [s] of other tracks' keys with a constraint that names

@@ -21,6 +21,7 @@ Pure functions of sampled positions (no model). Units: metres, seconds.
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from azee_mj.blend import minjerk
 
@@ -34,6 +35,8 @@ BETA = 1.0 / 3.0
 SAMPLES = 128
 #: Smoothing passes over a movement's path of postures (:func:`smoothed`).
 SMOOTHING = 4
+#: How much a joint's turn counts as distance along a path [m/rad] (a hand's length).
+LEVER = 0.02
 #: A movement shorter than this [m] (summed over its sites) is left as it is.
 SHORTEST = 2e-3
 
@@ -61,18 +64,30 @@ def distance_weight(curve: np.ndarray, s: np.ndarray, grid: np.ndarray) -> np.nd
     return (np.clip(k, STRAIGHT, SHARPEST) / STRAIGHT) ** BETA
 
 
-def paced(points: np.ndarray, curve: np.ndarray | None = None) -> np.ndarray | None:
+def paced(
+    points: np.ndarray,
+    curve: np.ndarray | None = None,
+    joints: np.ndarray | None = None,
+    pins=(),
+) -> np.ndarray | None:
     """(n,) the fractional frame of a path to show at each of its n evenly timed frames
     (from a rest to a rest), so that the summed distance its sites travel (``points``
     (n, k, 3), k sites) follows one minimum-jerk bell; with ``curve`` (n, 3) (the point
     tracing a curved path), that distance counts more where ``curve`` bends (the
-    two-thirds power law). None when the sites hardly move."""
+    two-thirds power law). ``joints`` (n, d): the joint values of the path [rad], whose
+    changes count too (:data:`LEVER` metres a radian), so that a joint that turns where
+    the sites hardly move (a hand turning about its wrist) is not rushed. ``pins``: inner
+    frames that keep their time (where a transpath starts or ends), the bell bent
+    smoothly to meet them. None when the sites hardly move, or the bell cannot meet the
+    pins going forward."""
     points = np.asarray(points, float)
     n = len(points)
     if n < 3:
         return None
     step = np.linalg.norm(np.diff(points, axis=0), axis=2).sum(axis=1)  # (n-1,)
     total = float(step.sum())
+    if joints is not None:
+        step = step + LEVER * np.linalg.norm(np.diff(joints, axis=0), axis=1)
     if total < SHORTEST:
         return None
     # strictly increasing (a stalled frame adds nothing to the distance)
@@ -80,7 +95,14 @@ def paced(points: np.ndarray, curve: np.ndarray | None = None) -> np.ndarray | N
     grid = np.linspace(s[0], s[-1], SAMPLES)
     w = np.ones(SAMPLES) if curve is None else distance_weight(np.asarray(curve), s, grid)
     sigma = np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(grid))]
-    target = sigma[-1] * minjerk(np.linspace(0.0, 1.0, n))
+    u = np.linspace(0.0, 1.0, n)
+    target = sigma[-1] * minjerk(u)
+    pins = sorted(p for p in set(pins) if 0 < p < n - 1)
+    if pins:
+        miss = np.interp(s[pins], grid, sigma) - target[pins]
+        target = target + PchipInterpolator(np.r_[0.0, u[pins], 1.0], np.r_[0.0, miss, 0.0])(u)
+        if np.any(np.diff(target) < 0.0):
+            return None
     at = np.interp(target, sigma, grid)
     out = np.interp(at, s, np.arange(n, dtype=float))
     out[0], out[-1] = 0.0, n - 1.0

@@ -31,9 +31,6 @@ FRAME_RESTARTS = 1
 CURVE_TOL = 0.05
 #: Tolerance of a transpath's path point [m].
 PATH_TOL = 1e-3
-#: How far the wrist may go from where a rigid hand would put it along a transpath [m]
-#: before the pull back counts as much as a constraint at its tolerance.
-GUIDE_TOL = 0.002
 #: A frame's step box over the largest joint change of the blend into it: the box never
 #: holds a joint slower than its blend moves.
 STEP_MARGIN = 1.5
@@ -66,72 +63,45 @@ def transpath_points(
     q: np.ndarray,
     times: np.ndarray,
     frames: slice = slice(None),
-    guide: str | None = None,
-) -> tuple[np.ndarray, np.ndarray | None]:
+) -> np.ndarray:
     """(F, 3) path points [m] of transpath block ``b`` at the frames ``frames`` (default
     every frame) of ``q`` (T, nq) (valid inside its interval): from the site where the
     frames put it at the block's start to where they put it at its end, along its route,
-    in minimum-jerk time. With ``guide`` (a model site of the same hand, its wrist), also
-    that site's (F, 3) points as if the hand went along rigidly: the path points plus the
-    site's offset from the path's site, from its offset at the start to that at the end
-    (None without a guide)."""
+    in minimum-jerk time."""
     sched = adapter.schedule
     site = SitePos(sched.comp.site(b.transpath_site))
     fs = min(int(np.searchsorted(times, b.start - 1e-9)), len(times) - 1)
     fe = min(int(np.searchsorted(times, b.end - 1e-9)), len(times) - 1)
     x0, x1 = (adapter.at(q[f]).value(site) for f in (fs, fe))
     u = minjerk((times[frames] - b.start) / b.duration)
-    pts = path_points(b.route, x0, x1, u, adapter.at(q[fs]), sched.smap)
-    if guide is None:
-        return pts, None
-    g = SitePos(guide)
-    o0, o1 = (adapter.at(q[f]).value(g) - x for f, x in ((fs, x0), (fe, x1)))
-    return pts, pts + o0 + u[:, None] * (o1 - o0)
+    return path_points(b.route, x0, x1, u, adapter.at(q[fs]), sched.smap)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Path:
     """A transpath during pass 2: its block, the model site it moves, the tracks of that
     site's limb and its points (F, 3) [m] at the frames from ``first`` on that its
-    interval holds (only those: a long score has many transpaths and many frames); the
-    hand's wrist ``guide`` and its points as the hand goes along rigidly (None: the path's
-    site is the wrist, or no wrist)."""
+    interval holds (only those: a long score has many transpaths and many frames)."""
 
     block: sc.Block
     site: str
     limbs: frozenset[str]
     points: np.ndarray
     first: int = 0
-    guide: str | None = None
-    guide_points: np.ndarray | None = None
 
     def place(self, f: int) -> cn.Place:
         """The placement of the site on its path point at frame ``f`` (inside the block)."""
         at = Const(tuple(self.points[f - self.first]))
         return cn.Place(self.site, at, PATH_TOL, f"{self.block.path}@path")
 
-    def guided(self, f: int) -> tuple[cn.Place, ...]:
-        """The wrist near where a rigid hand would put it at frame ``f``, as a preference
-        (none without a guide): the hand turns evenly along the path instead of the arm
-        pausing while the hand pivots about the path's site."""
-        if self.guide is None:
-            return ()
-        at = Const(tuple(self.guide_points[f - self.first]))
-        return (cn.Place(self.guide, at, GUIDE_TOL, f"{self.block.path}@guide"),)
-
 
 def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray) -> Path:
     """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]."""
-    sched = adapter.schedule
-    comp = sched.comp
+    comp = adapter.schedule.comp
     site = comp.site(b.transpath_site)
-    limbs = frozenset(comp.site_tracks(site))
-    arms = sorted(t for t in limbs if t.startswith("arm_"))
-    wrist = sched.smap.sites.get(f"WR_{arms[0][-1]}") if len(arms) == 1 else None
-    guide = wrist if wrist is not None and wrist != site else None
     inside = slice(*np.searchsorted(times, [b.start, b.end]).tolist())  # start <= t < end
-    points, guides = transpath_points(adapter, b, q, times, inside, guide)
-    return Path(b, site, limbs, points, inside.start, guide, guides)
+    points = transpath_points(adapter, b, q, times, inside)
+    return Path(b, site, frozenset(comp.site_tracks(site)), points, inside.start)
 
 
 class BlendCurve:
@@ -221,11 +191,9 @@ class FrameSolver:
             curve.advance(f)
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = self.held(tracks, t, keys_at)
-            guides: list = []
             for p in (paths[j] for j in paths_at.at(t)):
                 if p.limbs & tracks:
                     cons.append(p.place(f))
-                    guides += p.guided(f)
                     free |= {j for tr in p.limbs for j in joints[tr]}
             if not cons:
                 self.follow(q, f, t, tracks)
@@ -233,7 +201,7 @@ class FrameSolver:
             self.held_frames[f] = True
             free |= {j for tr in tracks for j in joints[tr]}
             bounds = self.reach(q, curve, still[f], f, names, tracks)
-            q[f] = self.constrained(q, curve, f, t, cons, free, bounds, guides)
+            q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
         return q
 
     def held(self, tracks, t: float, keys_at: KeyIndex) -> tuple[list, set[str]]:
@@ -283,14 +251,13 @@ class FrameSolver:
             # still through (it started deep in): from the frame before, clear
             q[f] = ad.solve(soft, sorted(free), q[f - 1], t, max_change=0.5 * step, restarts=0).qpos
 
-    def constrained(self, q, curve, f: int, t: float, cons, free, bounds, guides=()) -> np.ndarray:
+    def constrained(self, q, curve, f: int, t: float, cons, free, bounds) -> np.ndarray:
         """The posture of frame ``f`` meeting ``cons``. The joints the constraints move
         start from the frame before (final by now), advanced by the blend's step (the same
         branch), and among the postures that meet the constraints take the one nearest the
         blend: a solve that starts where its constraints are met stops at once, and would
-        leave them still until the next key; ``guides`` (preferences: a transpath's wrist)
-        join that nearness. The others follow the blend, at most a step a frame from the
-        frame before."""
+        leave them still until the next key. The others follow the blend, at most a step a
+        frame from the frame before."""
         ad, step = self.adapter, self.step
         key = tuple(cons)
         if key not in self._needs:
@@ -310,7 +277,7 @@ class FrameSolver:
                 q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
         if bounds is not None:
             q0 = np.clip(q0, *bounds)
-        near = (self.curve_preference(q[f], moved), *guides)
+        near = (self.curve_preference(q[f], moved),)
         res = ad.solve(
             cons,
             moved,

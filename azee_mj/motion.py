@@ -85,6 +85,8 @@ __all__ = [
 #: A movement this smooth (SPARC of its sites' summed speed; minimum jerk gives -1.40)
 #: is one bell already: it is not paced again.
 BELL_SPARC = -1.42
+#: Most of a paced movement's frames that may be pushed out of the body one by one.
+MAX_PUSHED = 0.5
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
 FLAT_PATH_KEYS = 6
 
@@ -192,6 +194,11 @@ class Pacer:
             if frames is None:
                 continue
             path[:, d] = resample(path[:, d], frames)
+            if np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
+                continue
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
+            if self.smoothness(pts) <= score:
+                continue  # pushing frames out would not make it smoother
             pts = self.pushed_out(path, times, joints, sids)
             if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
@@ -217,17 +224,22 @@ class Pacer:
         """Frames of ``path`` (n, nq) at ``times`` that go into the body pushed out by
         their ``joints``, nearest them (in place); the sites ``sids`` at each frame
         (n, k, 3), or None when a frame stays deeper than ``PENETRATION_LIMIT``."""
-        ad, sched = self.adapter, self.schedule
+        ad = self.adapter
         pts = np.empty((len(path), len(sids), 3))
+        bad = []
         for i, t in enumerate(times):
+            if ad.penetrates(path[i], t):
+                bad.append(i)
+            pts[i] = ad.solver.data.site_xpos[sids]
+        if len(bad) > MAX_PUSHED * len(path):
+            return None  # paced through the body: not worth solving frame by frame
+        for i in bad:
+            soft = ad.soft_targets(path[i], joints)
+            path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos
             k = ad.at(path[i])
-            allowed = sched.allowed_at(t)
-            if cn.penetration_depth(k.m, k.d, allowed) > cn.COLLISION_TOL:
-                soft = ad.soft_targets(path[i], joints)
-                path[i] = ad.solve(soft, joints, path[i], t, restarts=0).qpos
-                k = ad.at(path[i])
-                if cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT:
-                    return None
+            allowed = self.schedule.allowed_at(times[i])
+            if cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT:
+                return None
             pts[i] = k.d.site_xpos[sids]
         return pts
 

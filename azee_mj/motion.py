@@ -85,6 +85,9 @@ __all__ = [
 #: A movement this smooth (SPARC of its sites' summed speed; minimum jerk gives -1.40)
 #: is one bell already: it is not paced again.
 BELL_SPARC = -1.42
+#: How far [m] a site of a paced frame may be from its path (the polyline of its frames)
+#: where the joints between two frames were interpolated.
+RESAMPLE_TOL = 2e-3
 #: Most of a paced movement's frames that may be pushed out of the body one by one.
 MAX_PUSHED = 0.5
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
@@ -196,10 +199,13 @@ class Pacer:
             path[:, d] = resample(path[:, d], frames)
             if np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
+            along = resample(pts.reshape(len(pts), -1), frames).reshape(pts.shape)
             pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
+            if np.linalg.norm(pts - along, axis=2).max() > RESAMPLE_TOL:
+                continue  # a joint swings between two frames: the sites leave their path
             if self.smoothness(pts) <= score:
                 continue  # pushing frames out would not make it smoother
-            pts = self.pushed_out(path, times, joints, sids)
+            pts = self.pushed_out(path, times, joints, sids, kept)
             if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
             if self.smoothness(pts) > score:
@@ -220,10 +226,12 @@ class Pacer:
         sp = sum(mv.speed(pts[:, j], self.fps) for j in range(pts.shape[1]))
         return mv.sparc(sp, self.fps) if sp.max() > 0.0 else -np.inf
 
-    def pushed_out(self, path, times, joints, sids) -> np.ndarray | None:
+    def pushed_out(self, path, times, joints, sids, kept=()) -> np.ndarray | None:
         """Frames of ``path`` (n, nq) at ``times`` that go into the body pushed out by
         their ``joints``, nearest them (in place); the sites ``sids`` at each frame
-        (n, k, 3), or None when a frame stays deeper than ``PENETRATION_LIMIT``."""
+        (n, k, 3). None when a frame stays deeper than ``PENETRATION_LIMIT``, when more
+        than ``MAX_PUSHED`` of them go in, or when one of the frames ``kept`` (held under
+        a constraint, which a push would not keep) does."""
         ad = self.adapter
         pts = np.empty((len(path), len(sids), 3))
         bad = []
@@ -231,8 +239,8 @@ class Pacer:
             if ad.penetrates(path[i], t):
                 bad.append(i)
             pts[i] = ad.solver.data.site_xpos[sids]
-        if len(bad) > MAX_PUSHED * len(path):
-            return None  # paced through the body: not worth solving frame by frame
+        if len(bad) > MAX_PUSHED * len(path) or set(bad) & set(kept):
+            return None  # paced through the body, or where it must hold a constraint
         for i in bad:
             soft = ad.soft_targets(path[i], joints)
             path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos

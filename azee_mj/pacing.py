@@ -41,25 +41,24 @@ LEVER = 0.02
 SHORTEST = 2e-3
 
 
-def curvature(x: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """(M,) curvature [1/m] of the curve with points ``x`` (M, 3) at parameters ``s``
-    (M,), increasing (any parameter: |x' x x''| / |x'|^3)."""
-    d1 = np.gradient(x, s, axis=0)
-    d2 = np.gradient(d1, s, axis=0)
-    speed = np.linalg.norm(d1, axis=1)
-    cross = np.linalg.norm(np.cross(d1, d2), axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.where(speed > 1e-9, cross / np.maximum(speed, 1e-12) ** 3, 0.0)
-    return np.nan_to_num(k)
+def turning(x: np.ndarray) -> np.ndarray:
+    """(n,) curvature [1/m] of the polyline ``x`` (n, 3) at each point: that of the circle
+    through it and its two neighbours (0 where two of them coincide; the ends take their
+    neighbour's)."""
+    a, b = x[1:-1] - x[:-2], x[2:] - x[1:-1]
+    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, x[2:] - x[:-2]))
+    cross = np.linalg.norm(np.cross(a, b), axis=1)
+    den = la * lb * lc
+    k = np.where(den > 1e-12, 2.0 * cross / np.maximum(den, 1e-300), 0.0)
+    return np.r_[k[:1], k, k[-1:]] if len(k) else np.zeros(len(x))
 
 
 def distance_weight(curve: np.ndarray, s: np.ndarray, grid: np.ndarray) -> np.ndarray:
     """(M,) how much a unit of path counts at each parameter of ``grid`` (M,) on a path
     whose frames are at parameters ``s`` (n,) (increasing) and whose curved point is at
     ``curve`` (n, 3) at each frame: (curvature / STRAIGHT)^BETA in curves, 1 where
-    straight."""
-    x = np.stack([np.interp(grid, s, curve[:, j]) for j in range(3)], axis=1)
-    k = curvature(x, grid)
+    straight (the curvature of ``curve`` at its frames, :func:`turning`)."""
+    k = np.interp(grid, s, turning(np.asarray(curve, float)))
     k = np.convolve(np.pad(k, 2, mode="edge"), np.ones(5) / 5, mode="valid")  # sample noise
     return (np.clip(k, STRAIGHT, SHARPEST) / STRAIGHT) ** BETA
 
@@ -97,7 +96,7 @@ def paced(
     sigma = np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(grid))]
     u = np.linspace(0.0, 1.0, n)
     target = sigma[-1] * minjerk(u)
-    pins = sorted(p for p in set(pins) if 0 < p < n - 1)
+    pins = sorted(p for p in set(pins) if 1 < p < n - 2)  # next to an end: the end
     if pins:
         miss = np.interp(s[pins], grid, sigma) - target[pins]
         target = target + PchipInterpolator(np.r_[0.0, u[pins], 1.0], np.r_[0.0, miss, 0.0])(u)

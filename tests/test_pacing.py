@@ -59,14 +59,15 @@ def test_a_still_hand_is_left_as_it_is():
     assert pc.paced(line_with_a_stop()[:2]) is None
 
 
-def test_curvature_of_a_circle_and_a_line():
+def test_curvature_of_a_circle_a_line_and_a_stall():
     th = np.linspace(0.0, np.pi, 200)
     r = 0.05
     circle = np.c_[r * np.cos(th), r * np.sin(th), np.zeros_like(th)]
-    k = pc.curvature(circle, th)
-    assert np.allclose(k[2:-2], 1.0 / r, rtol=1e-3)
+    assert np.allclose(pc.turning(circle), 1.0 / r, rtol=1e-3)
     line = np.c_[th, 2.0 * th, -th]
-    assert np.allclose(pc.curvature(line, th), 0.0, atol=1e-9)
+    assert np.allclose(pc.turning(line), 0.0, atol=1e-9)
+    stalled = np.r_[circle[:50], circle[49:50], circle[50:]]  # a frame that did not move
+    assert np.all(np.isfinite(pc.turning(stalled)))
 
 
 def test_a_metre_counts_more_in_a_curve_by_the_power_law():

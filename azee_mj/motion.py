@@ -205,7 +205,7 @@ class Pacer:
                 continue  # a joint swings between two frames: the sites leave their path
             if self.smoothness(pts) <= score:
                 continue  # pushing frames out would not make it smoother
-            pts = self.pushed_out(path, times, joints, sids, kept)
+            pts = self.pushed_out(path, times, joints, sids, run, kept)
             if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
             if self.smoothness(pts) > score:
@@ -226,13 +226,22 @@ class Pacer:
         sp = sum(mv.speed(pts[:, j], self.fps) for j in range(pts.shape[1]))
         return mv.sparc(sp, self.fps) if sp.max() > 0.0 else -np.inf
 
-    def pushed_out(self, path, times, joints, sids, kept=()) -> np.ndarray | None:
+    def pushed_out(self, path, times, joints, sids, run, kept=()) -> np.ndarray | None:
         """Frames of ``path`` (n, nq) at ``times`` that go into the body pushed out by
         their ``joints``, nearest them (in place); the sites ``sids`` at each frame
-        (n, k, 3). None when a frame stays deeper than ``PENETRATION_LIMIT``, when more
-        than ``MAX_PUSHED`` of them go in, or when one of the frames ``kept`` (held under
-        a constraint, which a push would not keep) does."""
-        ad = self.adapter
+        (n, k, 3). None when a pushed frame stays deeper than the frame of ``run`` it
+        replaces (or ``COLLISION_TOL``), when more than ``MAX_PUSHED`` of them go in, when one of
+        the frames ``kept`` (held under a constraint, which a push would not keep) does, or
+        when, where a contact lets two parts touch, they go deeper into each other than in
+        ``run``."""
+        ad, sched = self.adapter, self.schedule
+
+        def depth(q, t, allowed=None):
+            k = ad.at(q)
+            return cn.penetration_depth(
+                k.m, k.d, sched.allowed_at(t) if allowed is None else allowed
+            )
+
         pts = np.empty((len(path), len(sids), 3))
         bad = []
         for i, t in enumerate(times):
@@ -241,14 +250,20 @@ class Pacer:
             pts[i] = ad.solver.data.site_xpos[sids]
         if len(bad) > MAX_PUSHED * len(path) or set(bad) & set(kept):
             return None  # paced through the body, or where it must hold a constraint
+        # where a contact lets two parts touch, they go no deeper into each other than the
+        # frame did
+        none = frozenset()
+        for i in (i for i, t in enumerate(times) if sched.allowed_at(t)):
+            deepest = max(depth(run[i], times[i], none), cn.COLLISION_TOL)
+            if depth(path[i], times[i], none) > deepest:
+                return None
         for i in bad:
             soft = ad.soft_targets(path[i], joints)
+            limit = max(cn.COLLISION_TOL, depth(run[i], times[i]))
             path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos
-            k = ad.at(path[i])
-            allowed = self.schedule.allowed_at(times[i])
-            if cn.penetration_depth(k.m, k.d, allowed) > cn.PENETRATION_LIMIT:
+            if depth(path[i], times[i]) > limit:
                 return None
-            pts[i] = k.d.site_xpos[sids]
+            pts[i] = ad.solver.data.site_xpos[sids]
         return pts
 
     def curved_paths(self) -> list[tuple[float, float, str, str]]:

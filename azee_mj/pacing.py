@@ -31,11 +31,13 @@ STRAIGHT = 2.0
 SHARPEST = 500.0
 #: The power law's exponent on curvature of the distance weight (speed ~ curvature^-1/3).
 BETA = 1.0 / 3.0
-#: Samples along the path where its curvature is measured.
+#: Samples along the path where the distance weight is integrated.
 SAMPLES = 128
 #: Smoothing passes over a movement's path of postures (:func:`smoothed`).
 SMOOTHING = 4
-#: How much a joint's turn counts as distance along a path [m/rad] (a hand's length).
+#: How much a joint's turn counts as distance along a path [m/rad]: enough that a joint
+#: turning while the sites stand nearly still (a hand turning about its wrist) is not
+#: rushed through in a frame or two.
 LEVER = 0.02
 #: A movement shorter than this [m] (summed over its sites) is left as it is.
 SHORTEST = 2e-3

@@ -53,6 +53,27 @@ def test_two_sites_are_paced_by_their_summed_distance():
     assert np.allclose(pc.paced(two), pc.paced(one))
 
 
+def test_a_pinned_frame_keeps_its_time_and_the_path_goes_forward():
+    pts = line_with_a_stop()
+    frames = pc.paced(pts, pins=[20])  # halfway along the path, halfway through the time
+    assert frames[20] == pytest.approx(20.0)
+    assert np.all(np.diff(frames) > 0.0)
+    # the path's first half done by frame 12 would need the bell to run backwards later
+    assert pc.paced(pts, pins=[12]) is None
+    assert pc.paced(pts, pins=[1]) == pytest.approx(pc.paced(pts))  # next to an end
+
+
+def test_a_joint_turning_where_the_sites_stand_still_is_not_rushed():
+    n = 41
+    pts = line_with_a_stop(n)
+    joints = np.zeros((n, 1))
+    joints[16:25, 0] = np.linspace(0.0, 10.0, 9)  # turns 10 rad while the sites stop
+    joints[25:, 0] = 10.0
+    without = np.diff(pc.resample(joints, pc.paced(pts))[:, 0]).max()
+    with_lever = np.diff(pc.resample(joints, pc.paced(pts, joints=joints))[:, 0]).max()
+    assert with_lever < 0.5 * without
+
+
 def test_a_still_hand_is_left_as_it_is():
     pts = np.zeros((20, 1, 3)) + np.linspace(0.0, 0.001, 20)[:, None, None]
     assert pc.paced(pts) is None

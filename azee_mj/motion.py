@@ -177,8 +177,8 @@ class Pacer:
         its path smoothed, else as it is; a frame paced into the body (another limb moves
         on its own time, a smoothed corner) pushed out, nearest it. The first that keeps
         the body out of itself (within the solver's ``PENETRATION_LIMIT``), turns no joint
-        faster than the frames or ``BRANCH_SPEED`` and is smoother than the frames (SPARC
-        of the sites' summed speed). None: the frames, or the sites hardly move."""
+        faster than the frames or ``BRANCH_SPEED``, moves no site faster than the frames'
+        fastest and is smoother than the frames (SPARC of the sites' summed speed). None: the frames, or the sites hardly move."""
         ad = self.adapter
         joints = self.joints(tracks)
         d = ad.dofs(joints)
@@ -208,6 +208,8 @@ class Pacer:
             pts = self.pushed_out(path, times, joints, sids, run, kept)
             if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
+            if self.peak_speed(pts) > self.peak_speed(at_run) + 1e-9:
+                continue  # a push made a site faster than any frame of the movement was
             if self.smoothness(pts) > score:
                 return path[:, d]
         return None
@@ -220,6 +222,10 @@ class Pacer:
             if b.kind is sc.BlockKind.TRANSPATH and limbs & set(tracks):
                 out += np.searchsorted(times, [b.start - 1e-9, b.end - 1e-9]).tolist()
         return out
+
+    def peak_speed(self, pts: np.ndarray) -> float:
+        """The fastest any site at ``pts`` (n, k, 3) moves [m/s]."""
+        return max(mv.speed(pts[:, j], self.fps).max() for j in range(pts.shape[1]))
 
     def smoothness(self, pts: np.ndarray) -> float:
         """SPARC of the summed speed of sites at ``pts`` (n, k, 3), one a frame."""

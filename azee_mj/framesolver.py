@@ -152,6 +152,9 @@ class FrameSolver:
         self.base = self.step
         self._reach = np.zeros(1)  # cumulative steps, for reach()
         self._needs: dict[tuple, set[int]] = {}  # constraints -> the dofs they move
+        #: (T,) the frames :meth:`solve` solved under constraints (the others follow their
+        #: blends, or are pushed out of the body).
+        self.held_frames = np.zeros(0, bool)
 
     def steps(self, curve: np.ndarray) -> np.ndarray:
         """(T,) each frame's step box [rad]: ``BRANCH_SPEED / fps``, or ``STEP_MARGIN``
@@ -182,6 +185,7 @@ class FrameSolver:
         # what holds a frame, in logarithmic time: not by asking every path and key
         paths_at = IntervalIndex((p.block.start, p.block.end) for p in paths)
         keys_at = KeyIndex(keys)
+        self.held_frames = np.zeros(len(times), bool)
         for f, t in enumerate(times):
             self.step = float(steps[f])
             curve.advance(f)
@@ -194,6 +198,7 @@ class FrameSolver:
             if not cons:
                 self.follow(q, f, t, tracks)
                 continue
+            self.held_frames[f] = True
             free |= {j for tr in tracks for j in joints[tr]}
             bounds = self.reach(q, curve, still[f], f, names, tracks)
             q[f] = self.constrained(q, curve, f, t, cons, free, bounds)

@@ -17,9 +17,12 @@ import itertools
 
 import numpy as np
 
+from azee_mj import constraints as cn
+from azee_mj import movement as mv
 from azee_mj import score as sc
 from azee_mj.blend import (
     BLEND_SPEED,
+    BRANCH_SPEED,
     MAX_BLEND,
     MAX_JOINT_SPEED,
     MIN_BLEND,
@@ -48,6 +51,7 @@ from azee_mj.framesolver import (
 )
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
+from azee_mj.pacing import SMOOTHING, paced, resample, smoothed
 from azee_mj.routes import arc_through, path_points
 from azee_mj.schedule import FLAT_FIXED, Mode
 from azee_mj.timing import frame_count, frame_range
@@ -79,8 +83,205 @@ __all__ = [
     "path_points",
 ]
 
+#: A movement this smooth (SPARC of its sites' summed speed; minimum jerk gives -1.40)
+#: is one bell already: it is not paced again.
+BELL_SPARC = -1.42
+#: How far [m] a site of a paced frame may be from its path (the polyline of its frames)
+#: where the joints between two frames were interpolated.
+RESAMPLE_TOL = 2e-3
+#: Most of a paced movement's frames that may be pushed out of the body one by one.
+MAX_PUSHED = 0.5
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
 FLAT_PATH_KEYS = 6
+
+
+def runs_of(flags: np.ndarray) -> list[tuple[int, int]]:
+    """Frame ranges ``(a, b)`` around each run of True in ``flags`` (T,): from the frame
+    before it (at rest) to the first frame after it, within the frames."""
+    edges = np.flatnonzero(np.diff(np.r_[False, flags, False].astype(np.int8)))
+    n = len(flags)
+    return [(max(a - 1, 0), min(b, n - 1)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def coupled(runs: list[tuple]) -> list[list[tuple]]:
+    """``runs`` ``(a, b, ...)`` grouped: those over the same frames (within one at either
+    end) together, spanning the widest."""
+    groups: list[list[tuple]] = []
+    for r in sorted(runs, key=lambda r: r[:2]):
+        for g in groups:
+            if abs(g[0][0] - r[0]) <= 1 and abs(g[0][1] - r[1]) <= 1:
+                g.append(r)
+                break
+        else:
+            groups.append([r])
+    out = []
+    for g in groups:
+        a, b = min(r[0] for r in g), max(r[1] for r in g)
+        out.append([(a, b, *r[2:]) for r in g])
+    return out
+
+
+class Pacer:
+    """Paces the movements of the arms in frames solved at ``fps`` frames per second
+    through ``adapter`` (:func:`~azee_mj.pacing.paced`): each movement keeps its path,
+    its start and its end, and the frames held under a constraint keep their postures."""
+
+    def __init__(self, adapter: IKAdapter, fps: float):
+        self.adapter, self.schedule, self.fps = adapter, adapter.schedule, fps
+
+    def joints(self, tracks) -> list[str]:
+        """The joints of ``tracks``, sorted."""
+        return sorted(j for t in tracks for j in self.schedule.track_joints[t])
+
+    def dofs(self, tracks) -> np.ndarray:
+        """The dofs of the joints of ``tracks`` (in :meth:`joints` order)."""
+        return self.adapter.dofs(self.joints(tracks))
+
+    def pace(self, q: np.ndarray, times, moving: np.ndarray, names: list[str], held) -> np.ndarray:
+        """Each arm's movements (its runs of blending frames, ``moving`` (T, tracks) of
+        the tracks ``names``, at ``times`` [s]) paced along their own paths
+        (:func:`~azee_mj.pacing.paced`): one speed bell between the same two frames at
+        rest, slower in the curves of a movement that follows a curved transpath (the
+        two-thirds power law). The arm's hand track goes with it; two arms moving over the
+        same frames go together (a two-handed sign), by their summed path. Only the
+        frames not ``held`` (T,) under a constraint are smoothed (in place)."""
+        sched, solver = self.schedule, self.adapter.solver
+        curved = self.curved_paths()
+        runs = []
+        for ti, t in enumerate(names):
+            side = t.removeprefix("arm_")
+            site = sched.smap.sites.get(f"WR_{side}") if t.startswith("arm_") else None
+            if site is not None:
+                runs += [(a, b, t, side, site) for a, b in runs_of(moving[:, ti])]
+        for group in coupled(runs):
+            a, b = group[0][0], group[0][1]
+            tracks = [t for r in group for t in (r[2], f"hand_{r[3]}") if t in sched.track_dofs]
+            span = times[a], times[b]
+            along = [
+                s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1
+            ]
+            sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
+            pins = [f - a for f in self.path_ends(times, tracks) if a < f < b]
+            keep = np.flatnonzero(held[a : b + 1]).tolist()
+            new = self.paced_run(
+                q[a : b + 1], times[a : b + 1], tracks, sids, bool(along), pins, keep
+            )
+            if new is not None:
+                q[a : b + 1, self.dofs(tracks)] = new
+        return q
+
+    def paced_run(self, run, times, tracks, sids, law: bool, pins=(), kept=()):
+        """The joints of ``tracks`` in one movement's frames ``run`` (n, nq) at ``times``
+        paced by the path of sites ``sids`` (``law``: the last traces a curved transpath;
+        ``pins``: frames that keep their time, see :func:`~azee_mj.pacing.paced`; ``kept``:
+        frames held under a constraint, not smoothed):
+        its path smoothed, else as it is; a frame paced into the body (another limb moves
+        on its own time, a smoothed corner) pushed out, nearest it. The first that keeps
+        the body out of itself (within the solver's ``PENETRATION_LIMIT``), turns no joint
+        faster than the frames or ``BRANCH_SPEED``, moves no site faster than the frames'
+        fastest and is smoother than the frames (SPARC of the sites' summed speed). None: the frames, or the sites hardly move."""
+        ad = self.adapter
+        joints = self.joints(tracks)
+        d = ad.dofs(joints)
+        at_run = np.array([ad.at(x).d.site_xpos[sids] for x in run])
+        score = self.smoothness(at_run)
+        if score >= BELL_SPARC and not law:
+            return None  # one bell already
+        fastest = max(np.abs(np.diff(run[:, d], axis=0)).max(), BRANCH_SPEED / self.fps)
+        kept, pins = sorted(set(pins) | set(kept)), sorted(set(pins))
+        for passes in (SMOOTHING, 0):
+            path = run.copy()
+            path[:, d] = smoothed(run[:, d], passes)
+            path[kept] = run[kept]  # held frames, where a transpath starts and ends
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path]) if passes else at_run
+            frames = paced(pts, pts[:, -1] if law else None, path[:, d], pins)
+            if frames is None:
+                continue
+            path[:, d] = resample(path[:, d], frames)
+            if np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
+                continue
+            along = resample(pts.reshape(len(pts), -1), frames).reshape(pts.shape)
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
+            if np.linalg.norm(pts - along, axis=2).max() > RESAMPLE_TOL:
+                continue  # a joint swings between two frames: the sites leave their path
+            if self.smoothness(pts) <= score:
+                continue  # pushing frames out would not make it smoother
+            pts = self.pushed_out(path, times, joints, sids, run, kept)
+            if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
+                continue
+            if self.peak_speed(pts) > self.peak_speed(at_run) + 1e-9:
+                continue  # a push made a site faster than any frame of the movement was
+            if self.smoothness(pts) > score:
+                return path[:, d]
+        return None
+
+    def path_ends(self, times, tracks) -> list[int]:
+        """The frames at ``times`` where a transpath of ``tracks`` starts or ends."""
+        comp, out = self.schedule.comp, []
+        for b in self.schedule.blocks:
+            limbs = comp.site_tracks(comp.site(b.transpath_site)) if b.transpath_site else set()
+            if b.kind is sc.BlockKind.TRANSPATH and limbs & set(tracks):
+                out += np.searchsorted(times, [b.start - 1e-9, b.end - 1e-9]).tolist()
+        return out
+
+    def peak_speed(self, pts: np.ndarray) -> float:
+        """The fastest any site at ``pts`` (n, k, 3) moves [m/s]."""
+        return max(mv.speed(pts[:, j], self.fps).max() for j in range(pts.shape[1]))
+
+    def smoothness(self, pts: np.ndarray) -> float:
+        """SPARC of the summed speed of sites at ``pts`` (n, k, 3), one a frame."""
+        sp = sum(mv.speed(pts[:, j], self.fps) for j in range(pts.shape[1]))
+        return mv.sparc(sp, self.fps) if sp.max() > 0.0 else -np.inf
+
+    def pushed_out(self, path, times, joints, sids, run, kept=()) -> np.ndarray | None:
+        """Frames of ``path`` (n, nq) at ``times`` that go into the body pushed out by
+        their ``joints``, nearest them (in place); the sites ``sids`` at each frame
+        (n, k, 3). None when a pushed frame stays deeper than the frame of ``run`` it
+        replaces (or ``COLLISION_TOL``), when more than ``MAX_PUSHED`` of them go in, when one of
+        the frames ``kept`` (held under a constraint, which a push would not keep) does, or
+        when, where a contact lets two parts touch, they go deeper into each other than in
+        ``run``."""
+        ad, sched = self.adapter, self.schedule
+
+        def depth(q, t, allowed=None):
+            k = ad.at(q)
+            return cn.penetration_depth(
+                k.m, k.d, sched.allowed_at(t) if allowed is None else allowed
+            )
+
+        pts = np.empty((len(path), len(sids), 3))
+        bad = []
+        for i, t in enumerate(times):
+            if ad.penetrates(path[i], t):
+                bad.append(i)
+            pts[i] = ad.solver.data.site_xpos[sids]
+        if len(bad) > MAX_PUSHED * len(path) or set(bad) & set(kept):
+            return None  # paced through the body, or where it must hold a constraint
+        # where a contact lets two parts touch, they go no deeper into each other than the
+        # frame did
+        none = frozenset()
+        for i in (i for i, t in enumerate(times) if sched.allowed_at(t)):
+            deepest = max(depth(run[i], times[i], none), cn.COLLISION_TOL)
+            if depth(path[i], times[i], none) > deepest:
+                return None
+        for i in bad:
+            soft = ad.soft_targets(path[i], joints)
+            limit = max(cn.COLLISION_TOL, depth(run[i], times[i]))
+            path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos
+            if depth(path[i], times[i]) > limit:
+                return None
+            pts[i] = ad.solver.data.site_xpos[sids]
+        return pts
+
+    def curved_paths(self) -> list[tuple[float, float, str, str]]:
+        """``(start, end, arm track, site)`` of the transpaths along an arc or a circle:
+        their interval [s], the tracks of the limb and the model site that traces them."""
+        comp, out = self.schedule.comp, []
+        for b in self.schedule.blocks:
+            if b.kind is sc.BlockKind.TRANSPATH and isinstance(b.route, sc.Arc | sc.Circle):
+                site = comp.site(b.transpath_site)
+                out += [(b.start, b.end, t, site) for t in comp.site_tracks(site)]
+        return out
 
 
 class Motion:
@@ -201,7 +402,9 @@ class Motion:
             )
         if flattened:
             return self.flat_transpaths(q, times)
-        return FrameSolver(self.adapter, self.fps).solve(q, times, moving, names, keys)
+        solver = FrameSolver(self.adapter, self.fps)
+        q = solver.solve(q, times, moving, names, keys)
+        return Pacer(self.adapter, self.fps).pace(q, times, moving, names, solver.held_frames)
 
     def carried(self, keys: dict[str, list[Key]]) -> dict[str, list[float]]:
         """Per track, the end times [s] of other tracks' keys with a constraint that names

@@ -128,3 +128,19 @@ def test_bad_motion_options_exit_2(tmp_path, capsys):
     assert "--tempo must be a number from 0.1 to 10, got 0" in capsys.readouterr().err
     assert main(["realize", str(GOOD), "-o", out, "--rest-hold", "-1"]) == 2
     assert not Path(out).exists()
+
+
+def test_a_two_handed_transition_is_paced_into_one_bell_and_keeps_its_holds(solver):
+    """nicht-sondern's hands go from NICHT's hold (to 2.0 s) into the two index tips'
+    contact (HANDS_CONTACT from 2.3 s), pushed out of each other frame by frame: the left
+    wrist had two speed peaks; paced, one for each hand, and the constraints of the
+    blocks either side are still met at every frame."""
+    score = load_score(Path(__file__).parents[1] / "examples" / "nicht-sondern.json")
+    r = timeline.realize(score, solver=solver)
+    t0, t1 = r.score_start + 2.0, r.score_start + 2.3
+    for site in ("WR_L", "WR_R"):
+        moves = [m for m, a, b in _wrist_moves(r, site) if a < t1 and b > t0]
+        assert len(moves) == 1 and moves[0].peaks == 1, site
+    for tr in r.traces:
+        if tr.block.endswith(("NICHT.GROUND", "NICHT.TRUNK", "HANDS_CONTACT")):
+            assert np.all(np.asarray(tr.active) <= tr.tol), tr.block

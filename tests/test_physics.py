@@ -22,9 +22,10 @@ BIEN = ROOT / "examples" / "bien.json"
 #: Golden physics rollout of bien (every 6th frame): postures within 1e-6 rad, torques
 #: within 1e-4 N m (MuJoCo is deterministic on one machine; across machines and compilers
 #: the last bits of floating point may differ). Regenerated when the default settings
-#: change on purpose (last: 20 Hz tracking instead of 8 Hz, postures moved by up to
-#: 2.6e-4 rad and torques by up to 6.9 N m; the body tracks the kinematic sites within
-#: 0.35 mm either way).
+#: change on purpose (20 Hz tracking instead of 8 Hz: postures moved by up to 2.6e-4 rad
+#: and torques by up to 6.9 N m, the body tracking the kinematic sites within 0.35 mm
+#: either way; last: the kinematic reference paced, its right hand's movement at 1.42 to
+#: 1.58 s: postures at 1.44 to 1.68 s moved by up to 0.04 rad, the same again after).
 GOLDEN = DATA / "physics_bien_golden.npz"
 GOLDEN_EVERY = 6
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from azee_mj.blend import (
     BRANCH_SPEED,
     MAX_BLEND,
     MAX_JOINT_SPEED,
+    MAX_REST_MOVE,
     MIN_BLEND,
     MIN_LEAD,
     MIN_RELAX,
@@ -42,6 +44,7 @@ from azee_mj.blend import (
     rest_duration,
     track_curve,
 )
+from azee_mj.errors import AzeeError
 from azee_mj.framesolver import (
     CURVE_TOL,
     FRAME_RESTARTS,
@@ -54,7 +57,7 @@ from azee_mj.intervals import IntervalIndex
 from azee_mj.pacing import SMOOTHING, paced, resample, smoothed
 from azee_mj.routes import arc_through, path_points
 from azee_mj.schedule import FLAT_FIXED, Mode
-from azee_mj.timing import frame_count, frame_range
+from azee_mj.timing import MAX_FRAMES, frame_count, frame_range
 from azee_mj.trills import add_trills
 
 __all__ = [
@@ -282,6 +285,21 @@ class Pacer:
                 site = comp.site(b.transpath_site)
                 out += [(b.start, b.end, t, site) for t in comp.site_tracks(site)]
         return out
+
+
+def check_room(duration: float, fps: float, hold: float) -> None:
+    """Refuse, before any solve, a score of ``duration`` [s] whose rollout at ``fps`` could
+    pass :data:`~azee_mj.timing.MAX_FRAMES` once its lead-in from rest and return to rest
+    (each at most ``MAX_REST_MOVE``, the return after ``hold`` [s]) are added: they are
+    planned only after the key postures, which take most of the time."""
+    margin = 2 * MAX_REST_MOVE + hold
+    n = math.floor((duration + margin) * fps) + 3  # + a frame each for rounding lead and end
+    if n > MAX_FRAMES:
+        raise AzeeError(
+            f"{duration:g} s of score at {fps:g} fps, with up to {margin:g} s of lead-in "
+            f"from rest and return to it, may need {n} frames; the limit is {MAX_FRAMES} "
+            "frames (1 hour at 50 fps): lower --fps, realize with --no-rest or split the score"
+        )
 
 
 class Motion:

@@ -45,7 +45,7 @@ from azee_mj.errors import AzeeError
 from azee_mj.findings import constraint_findings, speed_findings
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import LEAN_STEPS, RELAXING, KeyPoser
-from azee_mj.motion import Motion
+from azee_mj.motion import Motion, check_room
 from azee_mj.preferences import (
     ELBOW_LOW,
     FACING_TOL,
@@ -129,6 +129,8 @@ def realize(
     score = at_tempo(score, tempo, hold)
     mode = Mode(mode) if isinstance(mode, str) else mode
     fps = check_fps(fps, "fps")
+    if rest and mode is Mode.MULTITRACK:
+        check_room(score.duration, fps, hold)
     smap = signer_map or DEFAULT_MAP
     solver = solver or make_solver(signer_map=smap)
     tick = progress or (lambda f: None)

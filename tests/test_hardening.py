@@ -411,6 +411,25 @@ def test_fps_must_be_finite_and_in_range(tmp_path, capsys, fps, command):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_hour_with_its_rest_moves_is_refused_before_any_solve(capsys, tmp_path):
+    # The lead-in and return to rest are planned after the key postures; a score whose
+    # rollout could pass the frame limit with them is refused first (it took minutes before).
+    path = tmp_path / "hour.json"
+    path.write_text(json.dumps(_score(end=3599)))
+    out = tmp_path / "hour.npz"
+    code, err = _run(capsys, "realize", path, "-o", out)
+    assert (code, err) == (
+        2,
+        (
+            f"{ERR}3599 s of score at 50 fps, with up to 2.7 s of lead-in from rest and return "
+            "to it, may need 180088 frames; the limit is 180001 frames (1 hour at 50 fps): "
+            "lower --fps, realize with --no-rest or split the score\n"
+        ),
+    )
+    assert not out.exists()
+    assert realize(_score(end=3590), fps=1).qpos.shape[0] <= MAX_FRAMES
+
+
 def test_frame_count_limit():
     assert frame_count(3600, 50) == MAX_FRAMES == 180_001
     with pytest.raises(AzeeError) as e:

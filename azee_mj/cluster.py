@@ -57,7 +57,13 @@ def open_client(scheduler: str, workers: int = 1) -> Iterator[Any]:
     ``workers`` processes of one thread each on this machine (closed on exit; its workers
     also end if this process is killed); otherwise connected to the scheduler at that
     address or described by that scheduler file (``.json``), which is left running.
-    Raises :class:`AzeeError` when Dask is missing or the scheduler does not answer."""
+    Raises :class:`AzeeError` for an empty ``scheduler``, when Dask is missing or when the
+    scheduler does not answer."""
+    if not scheduler.strip():
+        raise AzeeError(
+            "--scheduler is empty; give 'local', an address such as tcp://HOST:8786, or a "
+            "scheduler file (.json)"
+        )
     distributed = require()
     with contextlib.ExitStack() as stack:
         if scheduler == LOCAL:

@@ -1,0 +1,229 @@
+"""Hostile inputs on the surfaces added in the same round as issue 27 (batch manifests,
+mouthing, Dask addresses, the physics mode): each case failed before its fix."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from azee_mj.cli import main
+from azee_mj.corpus import FIELDS, Manifest, read_manifest
+from azee_mj.errors import AzeeError
+
+ROOT = Path(__file__).resolve().parent.parent
+GOOD = Path(__file__).parent / "data" / "good.json"
+ERR = "azee-mj: error: "
+
+#: Names a spreadsheet would run as formulas, or that drive a terminal.
+FORMULAS = ['=HYPERLINK("http://x")', "+1+1", "-2+3", "@SUM(A1)", "'=quoted", "'plain"]
+CONTROLS = ["red\x1b[31m.json", "csi\x9b2J.json", "bidi\u202egnp.json", "nl\nforged.json"]
+
+
+def _run(capsys, *argv) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _rows(names: list[str]) -> list[dict]:
+    return [
+        {k: None for k in FIELDS}
+        | {"input": n, "output": n + ".npz", "status": "failed"}
+        | {"error": f"{n}: bad", "frames": 3}
+        for n in names
+    ]
+
+
+def test_a_csv_manifest_writes_no_formula_and_reads_its_cells_back(tmp_path):
+    path = tmp_path / "m.csv"
+    with Manifest(path, _rows(FORMULAS[:3])) as m:
+        for r in _rows(FORMULAS[3:]):
+            m.add(r)
+    cells = [c for row in csv.reader(io.StringIO(path.read_text())) for c in row]
+    assert not [c for c in cells if c[:1] in ("=", "+", "-", "@")]
+    assert '\'=HYPERLINK("http://x")' in cells and "''=quoted" in cells
+    rows = read_manifest(path)
+    assert [r["input"] for r in rows] == FORMULAS
+    assert [r["output"] for r in rows] == [n + ".npz" for n in FORMULAS]
+    assert [r["frames"] for r in rows] == ["3"] * len(FORMULAS)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl"])
+def test_a_manifest_never_holds_a_raw_control_character(tmp_path, suffix):
+    path = tmp_path / f"m{suffix}"
+    with Manifest(path, _rows(CONTROLS)):
+        pass
+    text = path.read_text(encoding="utf-8")
+    for c in "\x1b\x9b\u202e":
+        assert c not in text
+    assert text.count("\n") == len(CONTROLS) + (suffix == ".csv")  # one line a row
+    rows = read_manifest(path)
+    if suffix == ".jsonl":  # JSON escapes: the names come back exactly
+        assert [r["input"] for r in rows] == CONTROLS
+        assert [json.loads(line)["error"] for line in text.splitlines()] == [
+            f"{n}: bad" for n in CONTROLS
+        ]
+    else:  # CSV has no escapes: the names are shown as the terminal lines show them
+        assert [r["input"] for r in rows] == [
+            "red\\x1b[31m.json",
+            "csi\\x9b2J.json",
+            "bidi\\u202egnp.json",
+            "nl\\x0aforged.json",
+        ]
+
+
+def test_a_batch_of_hostile_file_names_writes_a_safe_manifest_and_terminal(tmp_path, capsys):
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    out.mkdir()
+    names = ["=1+2.json", "-x.json", "esc\x1b]0;pwned\x07.json"]
+    for n in names:
+        shutil.copy(GOOD, src / n)
+    manifest = tmp_path / "m.csv"
+    code, said, err = _run(
+        capsys,
+        "realize",
+        src,
+        "-o",
+        f"{out}/",
+        "--fps",
+        "10",
+        "--jobs",
+        "1",
+        "--manifest",
+        manifest,
+    )
+    assert code == 0, err
+    for text in (said, err, manifest.read_text()):
+        assert "\x1b" not in text and "\x07" not in text
+    cells = [c for row in csv.reader(io.StringIO(manifest.read_text())) for c in row]
+    assert not [c for c in cells if c[:1] in ("=", "+", "-", "@")]
+    got = sorted(Path(r["input"]).name for r in read_manifest(manifest))
+    assert got == sorted(["=1+2.json", "-x.json", "esc\\x1b]0;pwned\\x07.json"])
+
+
+def test_a_mouthed_word_has_a_length_limit(tmp_path, capsys):
+    from azee_mj.mouthing import MAX_WORD
+
+    out = tmp_path / "o.json"
+    word = "a" * (MAX_WORD + 1)
+    code, _, err = _run(capsys, "compile", "-e", f':mouthing(:bien, "{word}")', "-o", out)
+    assert code == 2
+    assert err == (
+        f"{ERR}<-e>:1:1: :mouthing'word: the word is {MAX_WORD + 1} characters long; a "
+        f"mouthing says at most {MAX_WORD} (a word or a short phrase)\n"
+    )
+    assert not out.exists()
+    # in a sequence, the block path says which
+    code, _, err = _run(capsys, "compile", "-e", f':seq(:bien, :mouthing(:bien, "{word}"))')
+    assert code == 2 and err.startswith(f"{ERR}<-e>:1:13: :seq'item:mouthing'word: the word is")
+
+
+def test_a_mouthed_word_at_the_limit_is_mouthed(tmp_path):
+    pytest.importorskip("phonemizer", reason="mouthing needs azee_mj[mouthing]")
+    from azee_mj import mouthing
+
+    if shutil.which("espeak-ng") is None and shutil.which("espeak") is None:
+        pytest.skip("mouthing needs espeak-ng")
+    word = ("maison " * 20)[: mouthing.MAX_WORD]
+    keys = mouthing.keys(word, "fr", 2.0)
+    assert len(keys) > 2 and keys[-1].viseme == "sil"
+
+
+@pytest.mark.parametrize("value", ["", " ", "\t"])
+def test_an_empty_scheduler_is_refused_not_run_here(tmp_path, capsys, value):
+    out = tmp_path / "out"
+    out.mkdir()
+    code, said, err = _run(
+        capsys, "realize", GOOD, GOOD.parent / "kinds.json", "-o", f"{out}/", "--scheduler", value
+    )
+    assert code == 2 and said == ""
+    assert err == (
+        f"{ERR}--scheduler is empty; give 'local', an address such as tcp://HOST:8786, or a "
+        "scheduler file (.json)\n"
+    )
+    assert list(out.iterdir()) == []
+    # one score: the same message (before, '' let it realize here)
+    code, _, err = _run(capsys, "realize", GOOD, "-o", tmp_path / "o.npz", "--scheduler", value)
+    assert code == 2 and "--scheduler is empty" in err
+    assert not (tmp_path / "o.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "what"),
+    [("--manifest", "a file FILE.jsonl or FILE.csv"), ("--report", "a file REPORT.json")],
+)
+def test_an_empty_output_option_is_refused(tmp_path, capsys, option, what):
+    code, _, err = _run(capsys, "realize", GOOD, "-o", tmp_path / "o.npz", option, "")
+    assert code == 2 and err.startswith(f"{ERR}{option} is empty; give {what}")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_open_client_refuses_an_empty_address():
+    from azee_mj.cluster import open_client
+
+    with pytest.raises(AzeeError) as e, open_client(""):
+        pass
+    assert str(e.value).startswith("--scheduler is empty")
+
+
+# ---------------------------------------------------------------------------------------
+# One verdict: realize (with --dynamics too) and check
+# ---------------------------------------------------------------------------------------
+
+
+def test_the_penetration_verdict_does_not_depend_on_the_solvers_margins():
+    from azee_mj.check import check_poses
+    from azee_mj.model import load_model
+    from azee_mj.schedule import make_solver
+
+    solver, model = make_solver(), load_model()
+    assert solver.model.geom_margin.max() > 0  # the IK solver's copy has margins
+    rng = np.random.default_rng(0)
+    q = np.repeat(model.qpos0[None], 200, axis=0)
+    for j in np.flatnonzero(model.jnt_limited):
+        lo, hi = model.jnt_range[j]
+        q[:, model.jnt_qposadr[j]] = rng.uniform(lo, hi, len(q))
+    a, b = check_poses(solver.model, q), check_poses(model, q)
+    assert len(b.penetrations) > 100  # random postures: many limbs through each other
+    np.testing.assert_array_equal(a.max_depth, b.max_depth)
+    key = sorted((p.frame, p.depth) for p in a.penetrations)
+    assert key == sorted((p.frame, p.depth) for p in b.penetrations)
+
+
+def test_realize_dynamics_and_check_say_the_same_findings(tmp_path, capsys):
+    score = ROOT / "examples" / "armoire.json"
+    out = tmp_path / "a.npz"
+    code, said, err = _run(
+        capsys, "realize", score, "-o", out, "--fps", "25", "--dynamics", "--strict"
+    )
+    assert code == 1, err
+    code, checked, err = _run(capsys, "check", out, "--score", score)
+    assert code == 1, err
+    said_lines = said.splitlines()[1:-1]  # between the summary and the physics line
+    checked_lines = checked.splitlines()[2:]
+    found = [x for x in said_lines if x.startswith("  finding: ")]
+    assert found  # the simulated motion has wrists over the human speed
+    assert [x for x in checked_lines if x.startswith("  finding: ")] == found
+    assert [x for x in checked_lines if "constraint" in x and x.startswith("  ")] == [
+        x for x in said_lines if "constraint" in x and x.startswith("  ")
+    ]
+    verdict = [x for x in said_lines if not x.startswith("  ")]
+    assert checked_lines[: len(verdict)] == verdict
+
+
+def test_a_dynamic_rollouts_findings_are_those_of_its_own_motion():
+    from azee_mj import physics
+    from azee_mj.score import load_score
+    from azee_mj.timeline import rollout_speed_findings
+
+    score = load_score(ROOT / "examples" / "armoire.json")
+    r = physics.realize(score, fps=25)
+    speeds = tuple(f for f in r.findings if f.kind == "speed")
+    assert speeds and speeds == rollout_speed_findings(score, r)

@@ -227,3 +227,53 @@ def test_a_dynamic_rollouts_findings_are_those_of_its_own_motion():
     r = physics.realize(score, fps=25)
     speeds = tuple(f for f in r.findings if f.kind == "speed")
     assert speeds and speeds == rollout_speed_findings(score, r)
+
+
+def test_an_internal_error_in_one_score_never_ends_a_batch(tmp_path, capsys, monkeypatch):
+    import azee_mj.batch
+
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    out.mkdir()
+    for name in ("buggy.json", "good.json"):
+        shutil.copy(GOOD, src / name)
+    read = azee_mj.batch.read_score
+
+    def buggy(path, lexicon=()):  # a bug that only this score meets
+        if Path(path).name == "buggy.json":
+            raise RecursionError("maximum recursion depth exceeded")
+        return read(path, lexicon)
+
+    monkeypatch.setattr(azee_mj.batch, "read_score", buggy)
+    code, _, err = _run(capsys, "realize", src, "-o", f"{out}/", "--fps", "10", "--jobs", "1")
+    assert code == 1
+    bad = src / "buggy.json"
+    assert f"{ERR}{bad}: internal error (RecursionError: maximum recursion depth exceeded)" in err
+    assert err.endswith(f"\nazee-mj: failed: {bad}\n")
+    assert [p.name for p in out.iterdir()] == ["good.npz"]
+
+
+def test_the_limits_page_states_every_limit():
+    from azee_mj import errors, files, mouthing, rollout_io, timing
+    from azee_mj.azee.syntax import MAX_NESTING
+    from azee_mj.export.player import MAX_PLAYER_FRAMES
+    from azee_mj.score import validation
+
+    text = (ROOT / "docs" / "limits.md").read_text()
+    said = [
+        f"{timing.MAX_DURATION:g} s",
+        f"{timing.MAX_FRAMES:,}",
+        f"from {timing.MIN_FPS:g} to {timing.MAX_FPS:g}",
+        f"+-{validation.MAX_NUMBER:.0e}".replace("e+0", "e"),
+        f"{validation.MAX_DEPTH} levels",
+        f"{MAX_NESTING} levels",
+        f"{files.MAX_TEXT_BYTES // 2**20} MB",
+        f"{mouthing.MAX_WORD} characters",
+        f"{rollout_io.MAX_BYTES / 2**30:.1f} GB",
+        f"{MAX_PLAYER_FRAMES:,} frames",
+        f"{errors.MAX_SHOWN} characters",
+        f"| {errors.MAX_RUN} (",
+        f"{errors.MAX_MESSAGE} characters",
+        f"| {validation.MAX_LISTED} (",
+    ]
+    assert [s for s in said if s not in text] == []

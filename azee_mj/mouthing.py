@@ -232,6 +232,12 @@ def phonemes(word: str, lang: str) -> tuple[str, ...]:
     text = unicodedata.normalize("NFC", word).strip()
     if not text:
         raise MouthingError('the word is empty; write the word to mouth, e.g. "maison"')
+    bad = next((c for c in text if unicodedata.category(c) == "Cc"), None)
+    if bad is not None:  # a NUL would silently cut the word short in espeak-ng
+        raise MouthingError(
+            f"the word holds the control character U+{ord(bad):04X}; write the word to "
+            'mouth in letters, e.g. "maison"'
+        )
     if len(text) > MAX_WORD:
         raise MouthingError(
             f"the word is {len(text)} characters long; a mouthing says at most {MAX_WORD} "

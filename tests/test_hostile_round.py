@@ -125,6 +125,19 @@ def test_a_mouthed_word_has_a_length_limit(tmp_path, capsys):
     assert code == 2 and err.startswith(f"{ERR}<-e>:1:13: :seq'item:mouthing'word: the word is")
 
 
+@pytest.mark.parametrize(("word", "code"), [("nul\x00x", "0000"), ("red\x1b[31m", "001B")])
+def test_a_mouthed_word_holds_no_control_character(tmp_path, capsys, word, code):
+    expr = tmp_path / "m.azee"
+    expr.write_text(f':mouthing(:bien, "{word}")\n', encoding="utf-8")
+    status, _, err = _run(capsys, "compile", expr, "-o", tmp_path / "m.json")
+    assert status == 2
+    assert err == (
+        f"{ERR}{expr}:1:1: :mouthing'word: the word holds the control character U+{code}; "
+        'write the word to mouth in letters, e.g. "maison"\n'
+    )
+    assert not (tmp_path / "m.json").exists()
+
+
 def test_a_mouthed_word_at_the_limit_is_mouthed(tmp_path):
     pytest.importorskip("phonemizer", reason="mouthing needs azee_mj[mouthing]")
     from azee_mj import mouthing
@@ -277,3 +290,30 @@ def test_the_limits_page_states_every_limit():
         f"| {validation.MAX_LISTED} (",
     ]
     assert [s for s in said if s not in text] == []
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        ("{not json", "not a scheduler file"),
+        ("[]", "not a scheduler file"),
+        ('{"address": 5}', "not a scheduler file"),
+        (None, "not a regular file"),
+    ],
+)
+def test_a_bad_scheduler_file_is_one_clear_line(tmp_path, capsys, content, problem):
+    pytest.importorskip("distributed", reason="--scheduler needs azee_mj[cluster]")
+    out = tmp_path / "out"
+    out.mkdir()
+    sched = tmp_path / "s.json"
+    if content is None:
+        sched.symlink_to("/dev/zero")  # never read
+    else:
+        sched.write_text(content)
+    code, _, err = _run(capsys, "realize", GOOD, "-o", f"{out}/", "--scheduler", sched)
+    assert code == 2  # a file that is not JSON was an internal error (AssertionError)
+    assert err.startswith(f"{ERR}--scheduler {sched}: {problem}")
+    assert err.endswith(
+        "; give the file a scheduler wrote (dask scheduler --scheduler-file FILE.json)\n"
+    )
+    assert list(out.iterdir()) == []

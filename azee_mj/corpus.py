@@ -156,7 +156,8 @@ class Manifest:
 
 def read_manifest(path: str | os.PathLike) -> list[dict]:
     """The rows of a manifest (JSON Lines or CSV); none if it does not exist. A line cut
-    short by a killed batch (the last one) is left out; CSV values are read as text."""
+    short by a killed batch (the last one), and a line that is not a row (not a JSON object
+    of numbers, texts and nulls), are left out; CSV values are read as text."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
@@ -166,16 +167,24 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
         raise InputFileError(f"{shorten(str(p), 200)}: cannot read the manifest ({e})") from None
     text = text[: text.rfind("\n") + 1]  # whole lines only
     if p.suffix.lower() == ".csv":
-        rows = list(csv.DictReader(io.StringIO(text)))
+        try:
+            rows = list(csv.DictReader(io.StringIO(text)))
+        except csv.Error as e:  # e.g. a field over the csv module's size limit
+            raise InputFileError(
+                f"{shorten(str(p), 200)}: cannot read the manifest ({e})"
+            ) from None
         rows = [r for r in rows if None not in r and None not in r.values()]
         return [{k: read_cell(v) for k, v in r.items()} for r in rows]
     out = []
     for line in text.splitlines():
         try:
             r = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # not a row (a line of 100,000 brackets)
             continue
-        if isinstance(r, dict):
+        # a row's values are JSON scalars: a list or an object is not a row ("output": [])
+        if isinstance(r, dict) and all(
+            v is None or isinstance(v, str | int | float) for v in r.values()
+        ):
             out.append(r)
     return out
 

@@ -317,3 +317,36 @@ def test_a_bad_scheduler_file_is_one_clear_line(tmp_path, capsys, content, probl
         "; give the file a scheduler wrote (dask scheduler --scheduler-file FILE.json)\n"
     )
     assert list(out.iterdir()) == []
+
+
+def test_resume_takes_no_row_that_is_not_one(tmp_path, capsys):
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    out.mkdir()
+    shutil.copy(GOOD, src / "a.json")
+    manifest = tmp_path / "m.jsonl"
+    argv = ["realize", src, "-o", f"{out}/", "--fps", "10", "--jobs", "1", "--manifest", manifest]
+    assert _run(capsys, *argv)[0] == 0
+    row = json.loads(manifest.read_text())
+    lines = [
+        json.dumps(row | {"output": [str(out / "a.npz")]}),  # unhashable: was exit 3
+        json.dumps(row | {"findings": {"x": 1}}),
+        "[" * 100_000,  # RecursionError in json: was exit 3
+        json.dumps(row),
+    ]
+    manifest.write_text("\n".join(lines) + "\n")
+    assert [r["output"] for r in read_manifest(manifest)] == [row["output"]]
+    code, _, err = _run(capsys, *argv, "--resume")
+    assert code == 0, err
+    assert "azee-mj: 1 score: 0 realized, 1 done before (--resume), 0 failed in " in err
+    assert read_manifest(manifest) == [row]
+
+
+def test_a_csv_manifest_the_csv_module_cannot_read_is_one_clear_line(tmp_path, capsys):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("input,output\n" + "x" * 300_000 + ",y\n")
+    with pytest.raises(AzeeError) as e:
+        read_manifest(manifest)
+    assert str(e.value) == (
+        f"{manifest}: cannot read the manifest (field larger than field limit (131072))"
+    )

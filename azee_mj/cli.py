@@ -268,7 +268,7 @@ def _cmd_realize(args, run: _Run) -> int:
     if args.dynamics:
         from azee_mj import physics
 
-        rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"))
+        rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"), **motion)
     else:
         rollout = realize(
             score,
@@ -293,7 +293,8 @@ def _cmd_realize(args, run: _Run) -> int:
     # the penetration verdict 'check --score' would say of this rollout, said here too: on
     # the signer 'check' loads (the solver's copy lacks the visual geoms, whose numbers
     # name the unnamed geoms, and adds margins)
-    verdict = rollout_verdict(load_model(), rollout, score, solver)
+    timed = score.at_tempo(args.tempo) if args.tempo != 1.0 else score  # as realized
+    verdict = rollout_verdict(load_model(), rollout, timed, solver)
     lines = summary_lines(args.output, rollout, args.fps)
     print("\n".join(map(printable, (lines[0], *verdict_lines(verdict, args.fps), *lines[1:]))))
     if args.dynamics:

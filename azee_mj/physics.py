@@ -707,11 +707,13 @@ def realize(
     signer_map: SignerMap | None = None,
     model=MODEL_PATH,
     progress: Callable[[float], None] | None = None,
+    **motion,
 ) -> DynamicRollout:
     """Realize ``score`` kinematically (:func:`azee_mj.timeline.realize`) and simulate the
     signer along it (:func:`simulate`): the physics mode's rollout, frame ``k`` at
     ``k / fps`` [s]. ``model``: the signer's MJCF path or spec; ``solver`` (default one
-    for ``model`` and ``signer_map``) must be on the same signer."""
+    for ``model`` and ``signer_map``) must be on the same signer; ``motion``: the kinematic
+    realization's ``rest``, ``hold`` and ``tempo`` (the score is simulated at that tempo)."""
     from azee_mj import timeline
     from azee_mj.schedule import make_solver
 
@@ -721,8 +723,11 @@ def realize(
     solver = solver or make_solver(model, signer_map=smap)
     tick = progress or (lambda f: None)
     kin = timeline.realize(
-        score, fps=fps, solver=solver, signer_map=smap, progress=lambda f: tick(0.5 * f)
+        score, fps=fps, solver=solver, signer_map=smap, progress=lambda f: tick(0.5 * f), **motion
     )
+    tempo = motion.get("tempo", 1.0)
+    if tempo != 1.0:  # the blocks at the times the kinematic rollout played them
+        score = score.at_tempo(tempo)
     return simulate(
         kin,
         score,

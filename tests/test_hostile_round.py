@@ -350,3 +350,20 @@ def test_a_csv_manifest_the_csv_module_cannot_read_is_one_clear_line(tmp_path, c
     assert str(e.value) == (
         f"{manifest}: cannot read the manifest (field larger than field limit (131072))"
     )
+
+
+def test_dynamics_follows_the_tempo_and_rest_options(tmp_path, capsys):
+    def frames(*opts) -> tuple[int, str]:
+        code, said, err = _run(
+            capsys, "realize", GOOD, "-o", tmp_path / "d.npz", "--dynamics", *opts
+        )
+        assert code == 0, err
+        head = said.splitlines()[0]
+        return int(head.split(": ")[1].split()[0]), head.split("; ")[-1]
+
+    plain, met = frames()
+    assert met == "3/3 constraints within tolerance"
+    fast, fast_met = frames("--tempo", "2")  # was ignored: the same frames as plain
+    assert fast < plain and fast_met == met  # the simulation follows the score at its tempo
+    still, _ = frames("--no-rest")
+    assert still < plain

@@ -547,7 +547,8 @@ COMMANDS = {
         "check a rollout for penetrations and range violations",
         (
             "Reports penetrations deeper than the limit, joints outside their range and non-finite "
-            "frames; with --score, also each constraint's residual. Exit 1 on any finding."
+            "frames; with --score, also each constraint's residual and the speeds over the human "
+            "range, as realize says them. Exit 1 on any finding."
         ),
     ),
     "preview": (

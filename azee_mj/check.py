@@ -7,6 +7,7 @@ is a finding.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Mapping
 
@@ -69,6 +70,18 @@ def _name(m: mujoco.MjModel, gid: int) -> str:
     return f"{body}/geom{gid}"
 
 
+def without_margins(model: mujoco.MjModel) -> mujoco.MjModel:
+    """``model``, or a copy of it with every geom margin zero: MuJoCo's narrow phase gives
+    slightly different depths (up to about 1 mm) for pairs it finds within a margin (the
+    IK solver's model has one for its distance rows), so a penetration verdict taken on a
+    model with margins would disagree with the same verdict on the signer's own model."""
+    if not np.any(model.geom_margin):
+        return model
+    bare = copy.deepcopy(model)
+    bare.geom_margin[:] = 0.0
+    return bare
+
+
 def check_poses(
     model: mujoco.MjModel,
     qpos: np.ndarray,
@@ -87,6 +100,7 @@ def check_poses(
     q = np.atleast_2d(np.asarray(qpos, float))
     if q.shape[1] != model.nq:
         raise ValueError(f"qpos has {q.shape[1]} columns; the model has nq={model.nq}")
+    model = without_margins(model)
     d = mujoco.MjData(model)
     lo = np.where(model.jnt_limited, model.jnt_range[:, 0], -np.inf)
     hi = np.where(model.jnt_limited, model.jnt_range[:, 1], np.inf)

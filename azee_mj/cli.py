@@ -203,14 +203,17 @@ def _cmd_check(args, run: _Run) -> int:
 
         score, solver = load_score(run.score_path(args.score, args.lexicon)), make_solver()
     report = rollout_verdict(model, rollout, score, solver)
-    print(summary(report, rollout.fps))
+    lines = summary(report, rollout.fps).splitlines()
     ok = report.clean
     if score is not None:
-        from azee_mj.timeline import residual_summary
+        from azee_mj.timeline import residual_summary, rollout_speed_findings
 
         text, within = residual_summary(score, rollout, solver)
-        print(text)
-        ok = ok and within
+        found = rollout_speed_findings(score, rollout, solver)  # as realize says them
+        more = [f"  ... and {len(found) - 5} more findings"] if len(found) > 5 else []
+        lines += [*text.splitlines(), *(f"  finding: {f.describe()}" for f in found[:5]), *more]
+        ok = ok and within and not found
+    print("\n".join(map(printable, lines)))  # block names are the score's: never raw
     return 0 if ok else 1
 
 
@@ -236,6 +239,7 @@ def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.batch import fingerprint, missed, summary_lines
     from azee_mj.check import rollout_verdict, verdict_lines
     from azee_mj.files import save_json
+    from azee_mj.model import load_model
     from azee_mj.rollout_io import save_rollout
     from azee_mj.schedule import make_solver
     from azee_mj.score import load_score
@@ -243,6 +247,7 @@ def _cmd_realize(args, run: _Run) -> int:
     from azee_mj.timing import check_fps
 
     check_fps(args.fps)
+    _not_empty(args)
     motion = _motion(args)
     if args.jobs is not None and args.jobs < 1:
         raise AzeeError(f"--jobs must be at least 1, got {args.jobs}")
@@ -263,7 +268,7 @@ def _cmd_realize(args, run: _Run) -> int:
     if args.dynamics:
         from azee_mj import physics
 
-        rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"))
+        rollout = physics.realize(score, fps=args.fps, progress=_Progress("realize"), **motion)
     else:
         rollout = realize(
             score,
@@ -285,13 +290,33 @@ def _cmd_realize(args, run: _Run) -> int:
     save_rollout(args.output, rollout, inputs=(path,), options=options)
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
-    # the penetration verdict 'check --score' would say of this rollout, said here too
-    verdict = rollout_verdict(solver.model, rollout, score, solver)
+    # the penetration verdict 'check --score' would say of this rollout, said here too: on
+    # the signer 'check' loads (the solver's copy lacks the visual geoms, whose numbers
+    # name the unnamed geoms, and adds margins)
+    timed = score.at_tempo(args.tempo) if args.tempo != 1.0 else score  # as realized
+    verdict = rollout_verdict(load_model(), rollout, timed, solver)
     lines = summary_lines(args.output, rollout, args.fps)
     print("\n".join(map(printable, (lines[0], *verdict_lines(verdict, args.fps), *lines[1:]))))
     if args.dynamics:
         print(rollout.summary())
     return 1 if args.strict and (missed(rollout) or not verdict.clean) else 0
+
+
+#: ``realize``'s options that take a name, and what to give: an empty one is an error
+#: (never a silent default: ``--scheduler ''`` must not run here).
+_NAMED = {
+    "scheduler": "'local', an address such as tcp://HOST:8786, or a scheduler file (.json)",
+    "manifest": "a file FILE.jsonl or FILE.csv",
+    "report": "a file REPORT.json, or a directory DIR/ for several scores",
+}
+
+
+def _not_empty(args) -> None:
+    """Refuse an option of :data:`_NAMED` given as an empty (or blank) text."""
+    for opt, what in _NAMED.items():
+        value = getattr(args, opt)
+        if value is not None and not value.strip():
+            raise AzeeError(f"--{opt} is empty; give {what}")
 
 
 def _motion(args) -> dict:
@@ -522,7 +547,8 @@ COMMANDS = {
         "check a rollout for penetrations and range violations",
         (
             "Reports penetrations deeper than the limit, joints outside their range and non-finite "
-            "frames; with --score, also each constraint's residual. Exit 1 on any finding."
+            "frames; with --score, also each constraint's residual and the speeds over the human "
+            "range, as realize says them. Exit 1 on any finding."
         ),
     ),
     "preview": (

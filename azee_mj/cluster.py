@@ -12,6 +12,7 @@ system); see ``docs/cluster.md``. Units: seconds.
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import os
 import uuid
@@ -57,7 +58,13 @@ def open_client(scheduler: str, workers: int = 1) -> Iterator[Any]:
     ``workers`` processes of one thread each on this machine (closed on exit; its workers
     also end if this process is killed); otherwise connected to the scheduler at that
     address or described by that scheduler file (``.json``), which is left running.
-    Raises :class:`AzeeError` when Dask is missing or the scheduler does not answer."""
+    Raises :class:`AzeeError` for an empty ``scheduler``, when Dask is missing or when the
+    scheduler does not answer."""
+    if not scheduler.strip():
+        raise AzeeError(
+            "--scheduler is empty; give 'local', an address such as tcp://HOST:8786, or a "
+            "scheduler file (.json)"
+        )
     distributed = require()
     with contextlib.ExitStack() as stack:
         if scheduler == LOCAL:
@@ -77,16 +84,49 @@ def open_client(scheduler: str, workers: int = 1) -> Iterator[Any]:
         yield client
 
 
+#: Largest scheduler file read [bytes] (Dask writes a few hundred).
+MAX_SCHEDULER_FILE = 2**20
+
+
+def scheduler_file_address(path: str) -> str:
+    """The scheduler address in the scheduler file ``path`` (the JSON object a scheduler
+    started with ``--scheduler-file`` writes); :class:`AzeeError` saying what is wrong with
+    a file that is missing, not a regular file, too large, or not such an object (Dask
+    itself would wait, then fail with an internal error)."""
+    shown = shorten(path, 100)
+    if not os.path.exists(path):
+        raise AzeeError(f"--scheduler {shown}: no such scheduler file")
+    hint = "give the file a scheduler wrote (dask scheduler --scheduler-file FILE.json)"
+    if not os.path.isfile(path):  # a fifo or /dev/zero: never read
+        raise AzeeError(f"--scheduler {shown}: not a regular file; {hint}")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_SCHEDULER_FILE + 1)
+    except OSError as e:
+        raise AzeeError(f"--scheduler {shown}: cannot read the scheduler file ({e.strerror})")
+    if len(data) > MAX_SCHEDULER_FILE:
+        raise AzeeError(
+            f"--scheduler {shown}: over {MAX_SCHEDULER_FILE // 2**20} MB, not a scheduler "
+            f"file; {hint}"
+        )
+    try:
+        info = json.loads(data.decode("utf-8"))
+    except ValueError:  # also UnicodeDecodeError
+        info = None
+    address = info.get("address") if isinstance(info, dict) else None
+    if not isinstance(address, str) or not address.strip():
+        raise AzeeError(
+            f'--scheduler {shown}: not a scheduler file (a JSON object with an "address" '
+            f"text); {hint}"
+        )
+    return address
+
+
 def _connect(distributed, scheduler: str):
     shown = shorten(scheduler, 100)
-    if scheduler.endswith(".json"):
-        if not os.path.isfile(scheduler):
-            raise AzeeError(f"--scheduler {shown}: no such scheduler file")
-        kwargs: dict[str, Any] = {"scheduler_file": scheduler}
-    else:
-        kwargs = {"address": scheduler}
+    address = scheduler_file_address(scheduler) if scheduler.endswith(".json") else scheduler
     try:
-        return distributed.Client(**kwargs, timeout=CONNECT_TIMEOUT)
+        return distributed.Client(address=address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError, TypeError) as e:
         what = shorten(str(e).splitlines()[0] if str(e) else type(e).__name__, 120)
         raise AzeeError(

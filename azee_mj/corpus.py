@@ -82,6 +82,36 @@ def row(outcome: Outcome, fps: float, options: str = "") -> dict:
     }
 
 
+#: What a spreadsheet reads as a formula at the start of a cell (and ``'``, the mark that
+#: says it is text, so that a cell which starts with it reads back unchanged).
+_FORMULA = ("=", "+", "-", "@", "'")
+
+
+def csv_cell(value) -> object:
+    """A manifest value as a CSV cell: ``""`` for none; a text with its control characters
+    and terminal escapes written as ``\\xNN`` (:func:`~azee_mj.errors.printable`) and, when
+    it starts as a formula would (``= + - @``), after a ``'`` that makes a spreadsheet
+    show it as text (:func:`read_cell` takes it off)."""
+    if value is None:
+        return ""
+    if not isinstance(value, str):
+        return value
+    value = printable(value)
+    return "'" + value if value.startswith(_FORMULA) else value
+
+
+def read_cell(text: str) -> str:
+    """A CSV manifest cell as written by :func:`csv_cell`, without its ``'`` mark."""
+    return text[1:] if text.startswith("'") and text[1:].startswith(_FORMULA) else text
+
+
+def json_controls(text: str) -> str:
+    """JSON text with every character that could drive a terminal (those
+    :func:`~azee_mj.errors.printable` escapes) written as a ``\\uNNNN`` escape: the same
+    JSON value, and ``cat`` shows it raw without harm."""
+    return "".join(f"\\u{ord(c):04x}" if printable(c) != c else c for c in text)
+
+
 class Manifest:
     """A manifest file: the ``rows`` given written at once (atomically), then one row
     appended (and flushed) per :meth:`add`. JSON Lines, or CSV for a ``.csv`` path."""
@@ -97,13 +127,14 @@ class Manifest:
 
     def _text(self, r: dict | None, header: bool) -> str:
         if not self.csv:
-            return json.dumps({k: r.get(k) for k in FIELDS}, ensure_ascii=False) + "\n"
+            text = json.dumps({k: r.get(k) for k in FIELDS}, ensure_ascii=False)
+            return json_controls(text) + "\n"
         buf = io.StringIO()
         w = csv.DictWriter(buf, FIELDS, lineterminator="\n")
         if header:
             w.writeheader()
         if r is not None:
-            w.writerow({k: "" if r.get(k) is None else r.get(k) for k in FIELDS})
+            w.writerow({k: csv_cell(r.get(k)) for k in FIELDS})
         return buf.getvalue()
 
     def add(self, r: dict) -> None:
@@ -125,7 +156,8 @@ class Manifest:
 
 def read_manifest(path: str | os.PathLike) -> list[dict]:
     """The rows of a manifest (JSON Lines or CSV); none if it does not exist. A line cut
-    short by a killed batch (the last one) is left out; CSV values are read as text."""
+    short by a killed batch (the last one), and a line that is not a row (not a JSON object
+    of numbers, texts and nulls), are left out; CSV values are read as text."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
@@ -135,15 +167,24 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
         raise InputFileError(f"{shorten(str(p), 200)}: cannot read the manifest ({e})") from None
     text = text[: text.rfind("\n") + 1]  # whole lines only
     if p.suffix.lower() == ".csv":
-        rows = list(csv.DictReader(io.StringIO(text)))
-        return [r for r in rows if None not in r and None not in r.values()]
+        try:
+            rows = list(csv.DictReader(io.StringIO(text)))
+        except csv.Error as e:  # e.g. a field over the csv module's size limit
+            raise InputFileError(
+                f"{shorten(str(p), 200)}: cannot read the manifest ({e})"
+            ) from None
+        rows = [r for r in rows if None not in r and None not in r.values()]
+        return [{k: read_cell(v) for k, v in r.items()} for r in rows]
     out = []
     for line in text.splitlines():
         try:
             r = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # not a row (a line of 100,000 brackets)
             continue
-        if isinstance(r, dict):
+        # a row's values are JSON scalars: a list or an object is not a row ("output": [])
+        if isinstance(r, dict) and all(
+            v is None or isinstance(v, str | int | float) for v in r.values()
+        ):
             out.append(r)
     return out
 

@@ -47,6 +47,11 @@ KEY_HALF_S = 0.01
 THETA = math.log(2.0) / 0.04
 #: Visemes whose key keeps its own shapes whatever the neighbours (the lips must meet).
 CLOSURES = ("PP", "FF")
+#: Longest text a mouthing may say [characters, after Unicode NFC and stripping]: a word or
+#: a short phrase (German's longest dictionary compounds have about 60 letters). A longer
+#: one is refused before the phonemizer sees it (it would mostly be dropped to fit its
+#: block anyway: at most 14 visemes a second).
+MAX_WORD = 100
 #: Hint given when the phonemizer is missing.
 INSTALL_HINT = "pip install 'azee_mj[mouthing]' and install espeak-ng (apt-get install espeak-ng)"
 
@@ -227,6 +232,17 @@ def phonemes(word: str, lang: str) -> tuple[str, ...]:
     text = unicodedata.normalize("NFC", word).strip()
     if not text:
         raise MouthingError('the word is empty; write the word to mouth, e.g. "maison"')
+    bad = next((c for c in text if unicodedata.category(c) == "Cc"), None)
+    if bad is not None:  # a NUL would silently cut the word short in espeak-ng
+        raise MouthingError(
+            f"the word holds the control character U+{ord(bad):04X}; write the word to "
+            'mouth in letters, e.g. "maison"'
+        )
+    if len(text) > MAX_WORD:
+        raise MouthingError(
+            f"the word is {len(text)} characters long; a mouthing says at most {MAX_WORD} "
+            "(a word or a short phrase)"
+        )
     backend = _backend(voice(lang))
     from phonemizer.separator import Separator
 

@@ -695,7 +695,7 @@ def simulate(
     m = actuated_model(score_ties, settings, smap, model)
     ref = reference(m, rollout, score_ties)
     traj = step(m, ref, len(rollout.time), score, progress)
-    return _dynamic(rollout, score, m, ref, traj, solver, _time.perf_counter() - t0)
+    return _dynamic(rollout, score, m, ref, traj, solver, smap, _time.perf_counter() - t0)
 
 
 def realize(
@@ -707,11 +707,13 @@ def realize(
     signer_map: SignerMap | None = None,
     model=MODEL_PATH,
     progress: Callable[[float], None] | None = None,
+    **motion,
 ) -> DynamicRollout:
     """Realize ``score`` kinematically (:func:`azee_mj.timeline.realize`) and simulate the
     signer along it (:func:`simulate`): the physics mode's rollout, frame ``k`` at
     ``k / fps`` [s]. ``model``: the signer's MJCF path or spec; ``solver`` (default one
-    for ``model`` and ``signer_map``) must be on the same signer."""
+    for ``model`` and ``signer_map``) must be on the same signer; ``motion``: the kinematic
+    realization's ``rest``, ``hold`` and ``tempo`` (the score is simulated at that tempo)."""
     from azee_mj import timeline
     from azee_mj.schedule import make_solver
 
@@ -721,8 +723,11 @@ def realize(
     solver = solver or make_solver(model, signer_map=smap)
     tick = progress or (lambda f: None)
     kin = timeline.realize(
-        score, fps=fps, solver=solver, signer_map=smap, progress=lambda f: tick(0.5 * f)
+        score, fps=fps, solver=solver, signer_map=smap, progress=lambda f: tick(0.5 * f), **motion
     )
+    tempo = motion.get("tempo", 1.0)
+    if tempo != 1.0:  # the blocks at the times the kinematic rollout played them
+        score = score.at_tempo(tempo)
     return simulate(
         kin,
         score,
@@ -758,7 +763,32 @@ def _trill_notes(score: sc.Score, traces):
     return tuple(out)
 
 
-def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
+def _findings(rollout, score, solver, smap, q, site_pos, traces) -> tuple:
+    """The findings of the simulated motion ``q`` (not those of the kinematic ``rollout``
+    it follows): speeds over the human range and constraints left, as
+    :func:`azee_mj.timeline.findings_of` finds them on a kinematic rollout."""
+    from azee_mj.findings import constraint_findings, speed_findings
+
+    joints = {
+        j: (track, solver.model.jnt_qposadr[solver.joint_id(j)])
+        for track, names in smap.tracks.items()
+        for j in names
+    }
+    t0 = rollout.score_start
+    found = speed_findings(
+        rollout.time,
+        q,
+        site_pos,
+        list(rollout.site_names),
+        joints,
+        rollout.schedule,
+        t0,
+        t0 + score.duration,
+    )
+    return tuple(found + constraint_findings(list(traces), rollout.time))
+
+
+def _dynamic(rollout, score, m, ref, traj, solver, smap, seconds) -> DynamicRollout:
     base = solver.model
     # MuJoCo's joint limits are soft: a joint held at its limit sits up to ~1e-4 rad past
     # it. Such slack is clipped from the stored postures (``clipped`` says how much); a
@@ -782,6 +812,7 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
     joints = tuple(
         mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in m.actuator_trnid[:, 0]
     )
+    traces = _trill_notes(score, score_traces(score, traj.qpos, rollout.fps, solver))
     s = rollout.stats
     stats = SolveStats(
         s.problems,
@@ -800,7 +831,7 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
         rollout.site_names,
         site_pos,
         rollout.schedule,
-        _trill_notes(score, score_traces(score, traj.qpos, rollout.fps, solver)),
+        traces,
         stats,
         joints=joints,
         torque=traj.torque,
@@ -813,7 +844,7 @@ def _dynamic(rollout, score, m, ref, traj, solver, seconds) -> DynamicRollout:
         tie_force=traj.tie_force,
         timestep=ref.dt,
         score_start=rollout.score_start,
-        findings=rollout.findings,
+        findings=_findings(rollout, score, solver, smap, traj.qpos, site_pos, traces),
         sim_seconds=seconds,
         clipped=clipped,
     )

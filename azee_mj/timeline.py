@@ -223,6 +223,34 @@ def score_traces(
     return constraint_traces(sched, q, np.arange(len(q)) / fps, fps, lead_frames=lead)
 
 
+def rollout_speed_findings(
+    score: sc.Score, rollout: Rollout, solver: ik.Solver | None = None
+) -> tuple[Finding, ...]:
+    """The speed findings of a rollout's motion against ``score`` (wrists and joints over
+    the human range, each in its block of the rollout's schedule), as ``realize`` finds
+    them: what ``check --score`` says too."""
+    solver = solver or make_solver()
+    sched = Schedule(score, solver)
+    joints = {
+        j: (track, solver.model.jnt_qposadr[solver.joint_id(j)])
+        for track, names in sched.track_joints.items()
+        for j in names
+    }
+    t0 = rollout.score_start
+    return tuple(
+        speed_findings(
+            rollout.time,
+            rollout.qpos,
+            rollout.site_pos,
+            list(rollout.site_names),
+            joints,
+            rollout.schedule,
+            t0,
+            t0 + score.duration,
+        )
+    )
+
+
 def residual_summary(
     score: sc.Score | str, rollout: Rollout, solver: ik.Solver | None = None
 ) -> tuple[str, bool]:

@@ -1,14 +1,14 @@
 """Export time: the 10-sign sentence of bench/realize.py to every export format.
 
     python bench/export.py [--repeats N]
-    python bench/export.py --long 100000
+    python bench/export.py --long 100000 [--formats .glb .gltf]
 
 Realizes the sentence once at 50 fps, then writes it to .glb, .gltf, .bvh, .pose, .csv and
 .html (the web player), best of N runs each (default 3), with the file sizes; writes
 bench/results/export.json. ``--long FRAMES``: the sentence's frames repeated to FRAMES
 frames, each format written once in a fresh process, with its wall time and the growth of
 that process's peak resident memory while writing (the streamed formats stay flat);
-writes bench/results/export_long.json.
+writes bench/results/export_long.json (``--out``). ``--formats``: only these suffixes.
 """
 
 from __future__ import annotations
@@ -64,23 +64,29 @@ print(wall, (after - before) / 1024, before / 1024, what, sep="\t")
 """
 
 
-def long_exports(qpos: np.ndarray, frames: int) -> list[dict]:
-    """Each format of a ``frames``-frame motion (``qpos`` repeated) in a fresh process:
-    wall time, peak memory growth while writing [MB], file size."""
+#: ``/usr/bin/time -f %M``: the peak resident memory [KB] of the whole process.
+_TIME = ["/usr/bin/time", "-f", "%M"] if Path("/usr/bin/time").exists() else []
+
+
+def long_exports(qpos: np.ndarray, frames: int, formats=FORMATS) -> list[dict]:
+    """Each of ``formats`` for a ``frames``-frame motion (``qpos`` repeated) in a fresh
+    process: wall time, peak memory growth while writing [MB], the process's peak resident
+    memory [MB] (``/usr/bin/time -f %M``), file size."""
     rows = []
     reps = -(-frames // len(qpos))
     q = np.tile(qpos, (reps, 1))[:frames]
     with tempfile.TemporaryDirectory() as tmp:
         np.save(Path(tmp) / "q.npy", q)
-        for suffix in FORMATS:
+        for suffix in formats:
             out = Path(tmp) / f"long{suffix}"
             p = subprocess.run(
-                [sys.executable, "-c", _ONE, str(Path(tmp) / "q.npy"), str(out)],
+                [*_TIME, sys.executable, "-c", _ONE, str(Path(tmp) / "q.npy"), str(out)],
                 capture_output=True,
                 text=True,
                 check=True,
             )
             wall, grown, base, what = p.stdout.strip().split("\t", 3)
+            peak = int(p.stderr.split()[-1]) / 1024 if _TIME else float(base) + float(grown)
             size = out.stat().st_size if out.exists() else 0
             rows.append(
                 {
@@ -88,12 +94,14 @@ def long_exports(qpos: np.ndarray, frames: int) -> list[dict]:
                     "export_s": float(wall),
                     "peak_growth_mb": float(grown),
                     "base_rss_mb": float(base),
+                    "peak_rss_mb": peak,
                     "bytes": size,
                     "outcome": what,
                 }
             )
             print(
                 f"{suffix:6s} {float(wall):7.1f} s  +{float(grown):7.0f} MB  "
+                f"peak {peak:7.0f} MB  "
                 f"{size / 1e6:8.1f} MB  {what[:60]}",
                 flush=True,
             )
@@ -105,6 +113,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--long", type=int, help="frames of a long motion (see the docstring)")
+    ap.add_argument("--formats", nargs="+", default=list(FORMATS), help="with --long")
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "export_long.json"))
     args = ap.parse_args()
     names = [SIGNS[i % len(SIGNS)] for i in range(10)]
     score = load_score(sentence(names))
@@ -112,9 +122,9 @@ def main():
     r = timeline.realize(score, fps=50)
     realize_s = time.perf_counter() - t0
     if args.long:
-        rows = long_exports(r.qpos, args.long)
-        (ROOT / "bench" / "results").mkdir(exist_ok=True)
-        (ROOT / "bench" / "results" / "export_long.json").write_text(
+        rows = long_exports(r.qpos, args.long, args.formats)
+        Path(args.out).parent.mkdir(exist_ok=True)
+        Path(args.out).write_text(
             json.dumps({"frames": args.long, "cpu": _cpu(), "rows": rows}, indent=1)
         )
         return

@@ -22,7 +22,9 @@ element is added; a browser shows control characters in the title as it likes)
 and ``--reports`` reports (:func:`report_one`: exit 0, every name HTML-escaped in the
 page), and ``.azee`` expressions nested 1 to 2,000 deep in parentheses or layout go
 through ``azee-mj compile`` (:func:`depth_one`: exit 0 or 2 with one line, never a
-``RecursionError``). Writes bench/results/fuzz.json.
+``RecursionError``). Then ``--manifests`` batch manifests with hostile values and lines
+(:func:`manifest_one`) are read and written back as ``--resume`` does. Writes
+bench/results/fuzz.json.
 """
 
 from __future__ import annotations
@@ -545,6 +547,90 @@ def names_round(pages: int, reports: int, seed: int, tmp: Path) -> tuple[Counter
     return outcomes, failures
 
 
+#: A manifest row's fields and the kinds of values a hostile manifest gives them.
+_MANIFEST_VALUES = [
+    *HOSTILE,
+    '=HYPERLINK("http://x")',
+    "+1",
+    "-1",
+    "@SUM(A1)",
+    "'=x",
+    "\x9b2J",
+    "\x00",
+    [["nested"]],
+    {"a": {"b": 1}},
+]
+
+
+def manifest_one(rng: random.Random, tmp: Path) -> tuple[str, str]:
+    """A manifest (JSON Lines or CSV) of good rows with hostile values and hostile lines
+    (brackets 100,000 deep, binary, half a row) through :func:`~azee_mj.corpus.read_manifest`
+    and back through :class:`~azee_mj.corpus.Manifest` (what ``--resume`` does): ``ok`` when
+    every row read is a dict of scalars and the file written holds no raw control character
+    and no cell a spreadsheet runs, ``rejected`` for one clean error, else ``internal``."""
+    import csv as _csv
+
+    from azee_mj.corpus import FIELDS, Manifest, read_manifest
+    from azee_mj.errors import AzeeError
+
+    suffix = rng.choice([".jsonl", ".csv"])
+    path = tmp / f"fuzz{suffix}"
+    rows = []
+    for _ in range(rng.randint(1, 5)):
+        r = {k: rng.choice(_MANIFEST_VALUES) for k in rng.sample(FIELDS, rng.randint(1, 4))}
+        rows.append({"input": "a.json", "output": "a.npz", "status": "done"} | r)
+    if suffix == ".jsonl":
+        lines = [json.dumps(r) for r in rows]
+        lines.insert(rng.randrange(len(lines) + 1), rng.choice(["[" * 100_000, "\x00\xff", "{"]))
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8", errors="surrogateescape")
+    else:
+        buf = io.StringIO()
+        w = _csv.writer(buf, lineterminator="\n")
+        w.writerow(FIELDS)
+        for r in rows:
+            w.writerow([str(r.get(k, "")) for k in FIELDS])
+        path.write_text(buf.getvalue())
+    try:
+        got = read_manifest(path)
+        bad = [
+            r
+            for r in got
+            if not all(v is None or isinstance(v, str | int | float) for v in r.values())
+        ]
+        if bad:
+            return "internal", f"a row that is not one: {bad[0]!r}"[:300]
+        out = tmp / f"again{suffix}"
+        with Manifest(out, got):
+            pass
+        text = out.read_text(encoding="utf-8")
+    except AzeeError as e:
+        return "rejected", str(e)[:200]
+    except Exception as e:  # noqa: BLE001 - the finding
+        return "internal", f"{type(e).__name__}: {e}"[:300]
+    raw = [c for c in "\x00\x1b\x9b\u202e" if c in text]
+    if raw:
+        return "internal", f"raw control characters {raw!r} written"
+    if suffix == ".csv":
+        cells = [c for row in _csv.reader(io.StringIO(text)) for c in row]
+        runs = [c for c in cells if c[:1] in ("=", "+", "-", "@")]
+        if runs:
+            return "internal", f"a cell a spreadsheet runs: {runs[0][:80]!r}"
+    return "ok", ""
+
+
+def manifests_round(count: int, seed: int, tmp: Path) -> tuple[Counter, list]:
+    """``count`` hostile manifests through :func:`manifest_one`: outcomes and failures."""
+    rng = random.Random(seed)
+    outcomes: Counter = Counter()
+    failures = []
+    for k in range(count):
+        outcome, detail = manifest_one(rng, tmp)
+        outcomes[outcome] += 1
+        if outcome not in ("ok", "rejected"):
+            failures.append({"mutant": f"manifest#{k}", "outcome": outcome, "detail": detail})
+    return outcomes, failures
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--count", type=int, default=1000)
@@ -554,6 +640,7 @@ def main():
     ap.add_argument("--rollouts", type=int, default=300, help="damaged rollouts for check")
     ap.add_argument("--pages", type=int, default=100, help="player pages with hostile names")
     ap.add_argument("--reports", type=int, default=20, help="reports with hostile names")
+    ap.add_argument("--manifests", type=int, default=300, help="hostile batch manifests")
     args = ap.parse_args()
     sys.setrecursionlimit(1000)  # the default: deep input must not need more
     counts: Counter = Counter()
@@ -577,6 +664,10 @@ def main():
         for f in bad:
             print(f"{f['mutant']}: {f['outcome']}: {f['detail']}", flush=True)
         failures += bad
+        sheets, bad = manifests_round(args.manifests, args.seed, Path(d))
+        for f in bad:
+            print(f"{f['mutant']}: {f['outcome']}: {f['detail']}", flush=True)
+        failures += bad
     wall = time.perf_counter() - t0
     summary = {
         "count": args.count,
@@ -588,6 +679,8 @@ def main():
         "pages": args.pages,
         "reports": args.reports,
         "names_outcomes": dict(names),
+        "manifests": args.manifests,
+        "manifest_outcomes": dict(sheets),
         "failures": failures,
         "wall_s": wall,
     }
@@ -596,7 +689,7 @@ def main():
     (res / "fuzz.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(
         f"{args.count} scores and {args.rollouts} rollouts in {wall:.0f} s: {dict(counts)}; "
-        f"check: {dict(checks)}; names and depths: {dict(names)}"
+        f"check: {dict(checks)}; names and depths: {dict(names)}; manifests: {dict(sheets)}"
     )
     return 1 if failures else 0
 

@@ -175,6 +175,66 @@ def test_exports_take_bounded_memory(tmp_path, suffix):
     assert grown_mb < 64, grown_mb  # 20,000 frames; whole-motion writers grew by hundreds
 
 
+_PEAK_GLTF = _PEAK.replace(
+    "import azee_mj.export.bvh, azee_mj.export.csv, azee_mj.export.pose, bvhio, pose_format",
+    "import azee_mj.export.gltf, pygltflib",
+)
+assert _PEAK_GLTF != _PEAK
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+def test_gltf_exports_take_bounded_memory(tmp_path, suffix):
+    pytest.importorskip("pygltflib", reason="the glTF export needs azee_mj[export]")
+    out = tmp_path / f"m{suffix}"
+    p = subprocess.run(
+        [sys.executable, "-c", _PEAK_GLTF, str(out), "20000"],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        check=False,
+    )
+    assert p.returncode == 0, p.stderr
+    grown_mb = int(p.stdout)
+    assert grown_mb < 64, grown_mb  # the whole-motion writer grew by 340 MB here
+
+
+def _glb_accessor(g, blob: bytes, i: int) -> np.ndarray:
+    acc = g.accessors[i]
+    view = g.bufferViews[acc.bufferView]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc.type]
+    raw = blob[view.byteOffset : view.byteOffset + view.byteLength]
+    assert view.byteLength == 4 * width * acc.count
+    return np.frombuffer(raw, np.float32).reshape(acc.count, width)
+
+
+def test_gltf_streams_the_bytes_of_the_whole_motion_at_once(model, long_motion, tmp_path):
+    gl = pytest.importorskip("pygltflib", reason="the glTF export needs azee_mj[export]")
+    from azee_mj.export import gltf
+
+    q, fps = long_motion.qpos, long_motion.fps
+    whole = gltf.glb_bytes(model, q, fps, chunk=len(q))
+    assert gltf.glb_bytes(model, q, fps, chunk=7) == whole  # any chunking, the same file
+    assert export(long_motion, tmp_path / "m.glb").read_bytes() == whole
+    g = gl.GLTF2.load_from_bytes(whole)
+    blob = g.binary_blob()
+    assert len(whole) % 4 == 0 and len(blob) == g.buffers[0].byteLength
+    # the key times, and quaternion signs continuous across every chunk boundary
+    sampler = g.animations[0].samplers[0]
+    times = _glb_accessor(g, blob, sampler.input)[:, 0]
+    np.testing.assert_array_equal(times, (np.arange(len(q)) / fps).astype(np.float32))
+    assert g.accessors[sampler.input].max == [float(times[-1])]
+    for ch in g.animations[0].channels:
+        if ch.target.path == "rotation":
+            r = _glb_accessor(g, blob, g.animations[0].samplers[ch.sampler].output)
+            assert np.all(np.sum(r[1:] * r[:-1], axis=1) > 0), ch.target.node
+    # the .gltf holds the same buffer, base64 in its JSON, and the same JSON otherwise
+    text = export(long_motion, tmp_path / "m.gltf").read_text()
+    g2 = gl.GLTF2.from_json(text)
+    assert g2.get_data_from_buffer_uri(g2.buffers[0].uri) == blob
+    g2.buffers[0].uri = None
+    assert g2.to_json() == g.to_json()
+
+
 def test_a_player_page_too_large_to_open_is_refused(model, tmp_path):
     pytest.importorskip("pygltflib", reason="the player needs azee_mj[export]")
     from azee_mj.export.player import MAX_PLAYER_FRAMES

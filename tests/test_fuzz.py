@@ -51,3 +51,10 @@ def test_hostile_names_in_pages_and_reports_and_deep_nesting(tmp_path):
     assert failures == []
     assert outcomes["page:ok"] == 20 and outcomes["report:ok"] + outcomes["report:rejected"] == 3
     assert outcomes["depth:ok"] >= 6 and outcomes["depth:rejected"] >= 8, outcomes
+
+
+@pytest.mark.fuzz
+def test_hostile_manifests_read_back_as_rows_or_one_clean_error(tmp_path):
+    outcomes, failures = fuzz.manifests_round(150, 27, tmp_path)
+    assert failures == []
+    assert outcomes["ok"] >= 50, outcomes

@@ -20,7 +20,11 @@ Needs ``pygltflib`` (``pip install azee_mj[export]``).
 from __future__ import annotations
 
 import base64
+import io
+import json
 import os
+import struct
+import tempfile
 
 import mujoco
 import numpy as np
@@ -48,25 +52,55 @@ def _yup_quat_xyzw() -> list[float]:
 
 
 class _Builder:
-    """A ``GLTF2`` under construction with its binary blob and its material table."""
+    """A ``GLTF2`` under construction: its static binary data (the meshes) in ``blob``, and
+    views reserved after it (``reserved`` bytes) for the animation, written later."""
 
     def __init__(self, gl, model: mujoco.MjModel):
         self.gl, self.model = gl, model
         self.blob = bytearray()
+        self.reserved = 0
         self.g = gl.GLTF2(asset=gl.Asset(generator="azee_mj", version="2.0"))
         # one material per MuJoCo material, or per distinct rgba of an unmaterialed geom
         self.mat_index: dict[object, int] = {}
 
+    @property
+    def size(self) -> int:
+        """The buffer's length in bytes (static data and reserved views)."""
+        return len(self.blob) + self.reserved
+
+    def _view(self, offset: int, length: int, target) -> int:
+        self.g.bufferViews.append(
+            self.gl.BufferView(buffer=0, byteOffset=offset, byteLength=length, target=target)
+        )
+        return len(self.g.bufferViews) - 1
+
     def add_view(self, arr: np.ndarray, target=None) -> int:
-        blob, g = self.blob, self.g
+        if self.reserved:
+            raise RuntimeError("static views come before the reserved ones")
+        blob = self.blob
         while len(blob) % 4:
             blob.append(0)
         data = np.ascontiguousarray(arr).tobytes()
-        g.bufferViews.append(
-            self.gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target)
-        )
+        view = self._view(len(blob), len(data), target)
         blob.extend(data)
-        return len(g.bufferViews) - 1
+        return view
+
+    def reserve_accessor(self, count: int, type_: str, minmax=None) -> int:
+        """A float accessor of ``count`` items whose data is written later into a view
+        reserved after the static data; ``minmax``: its ``(min, max)`` lists."""
+        while len(self.blob) % 4:
+            self.blob.append(0)
+        width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[type_]
+        nbytes = 4 * width * count
+        view = self._view(self.size, nbytes, None)
+        self.reserved += nbytes
+        acc = self.gl.Accessor(
+            bufferView=view, componentType=self.gl.FLOAT, count=count, type=type_
+        )
+        if minmax is not None:
+            acc.min, acc.max = minmax
+        self.g.accessors.append(acc)
+        return len(self.g.accessors) - 1
 
     def add_accessor(self, arr: np.ndarray, type_: str, target=None, minmax=False) -> int:
         gl = self.gl
@@ -159,24 +193,22 @@ def _add_nodes(bld: _Builder, names, body_mesh, lpos, lquat) -> None:
     g.scene = 0
 
 
-def _add_animation(bld: _Builder, T: int, fps: float, rot, slide, lpos, lquat) -> None:
-    """One linear sampler per moving body's rotation and translation."""
+def _add_animation(bld: _Builder, T: int, fps: float, rot, slide) -> list[tuple[int, str, int]]:
+    """One linear sampler per moving body's rotation and translation, their key times and
+    values in views reserved for :func:`_write_animation`; returns the channels as
+    ``(body, path, view)``, the key times' view first as ``(-1, "time", view)``."""
     gl, model, g = bld.gl, bld.model, bld.g
-    times = (np.arange(T) / fps).astype(np.float32)
-    t_acc = None
-    samplers, channels = [], []
+    samplers, channels, plan = [], [], []
     for b in range(1, model.nbody):
-        for path, flag, values in (
-            ("rotation", rot[b], lquat[:, b][:, [1, 2, 3, 0]]),
-            ("translation", slide[b], lpos[:, b]),
-        ):
+        for path, flag in (("rotation", rot[b]), ("translation", slide[b])):
             if not flag:
                 continue
-            if t_acc is None:
-                t_acc = bld.add_accessor(times, gl.SCALAR, minmax=True)
-            out = bld.add_accessor(
-                values.astype(np.float32), gl.VEC4 if path == "rotation" else gl.VEC3
-            )
+            if not plan:
+                last = float(np.float32((T - 1) / fps))
+                t_acc = bld.reserve_accessor(T, gl.SCALAR, ([0.0], [last]))
+                plan.append((-1, "time", g.accessors[t_acc].bufferView))
+            out = bld.reserve_accessor(T, gl.VEC4 if path == "rotation" else gl.VEC3)
+            plan.append((b, path, g.accessors[out].bufferView))
             samplers.append(gl.AnimationSampler(input=t_acc, output=out, interpolation="LINEAR"))
             channels.append(
                 gl.AnimationChannel(
@@ -185,6 +217,112 @@ def _add_animation(bld: _Builder, T: int, fps: float, rot, slide, lpos, lquat) -
             )
     if channels:
         g.animations = [gl.Animation(name="motion", samplers=samplers, channels=channels)]
+    return plan
+
+
+def _write_animation(f, base: int, bld: _Builder, qpos, fps: float, plan, chunk: int) -> None:
+    """Write the key times and values of ``plan`` (see :func:`_add_animation`) into the
+    seekable file ``f``, whose buffer starts at ``base``, ``chunk`` frames at a time: the
+    memory used does not grow with the number of frames."""
+    views = bld.g.bufferViews
+    prev = None
+    for k0, q in mo.chunks(qpos, chunk):
+        pos, quat = mo.body_frames(bld.model, q)
+        lpos, lquat = mo.local_frames(bld.model, pos, quat, prev)
+        prev = lquat[-1]
+        for b, path, view in plan:
+            if path == "time":
+                values = np.arange(k0, k0 + len(q)) / fps
+            elif path == "rotation":
+                values = lquat[:, b][:, [1, 2, 3, 0]]
+            else:
+                values = lpos[:, b]
+            data = np.ascontiguousarray(values, np.float32)
+            f.seek(base + views[view].byteOffset + k0 * data[0].nbytes)
+            f.write(data.tobytes())
+    f.seek(base + bld.size)
+
+
+def _prepare(model: mujoco.MjModel, qpos, fps: float, groups, segments: int):
+    """The glTF's JSON part (buffer length set), its static binary data, and the animation
+    plan (see :func:`_add_animation`); the animation data itself is not computed yet."""
+    gl = mo.require("pygltflib", "glTF")
+    mo.check_qpos(model, qpos, fps)
+    names = mo.body_names(model)
+    rot, slide = mo.moving_bodies(model)
+    pos, quat = mo.body_frames(model, np.asarray(qpos[:1], float))
+    lpos, lquat = mo.local_frames(model, pos, quat)
+
+    bld = _Builder(gl, model)
+    body_mesh = _add_meshes(bld, names, groups, segments)
+    _add_nodes(bld, names, body_mesh, lpos, lquat)
+    plan = _add_animation(bld, len(qpos), fps, rot, slide)
+    bld.g.buffers = [gl.Buffer(byteLength=bld.size)]
+    return bld, plan
+
+
+def write_glb(
+    f,
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    *,
+    groups=VISUAL_GROUPS,
+    segments: int = SEGMENTS,
+    chunk: int = mo.CHUNK,
+) -> None:
+    """Write the GLB of the signer and its motion to the seekable binary file ``f`` (the
+    motion ``chunk`` frames at a time, in bounded memory); arguments as
+    :func:`build_gltf`."""
+    bld, plan = _prepare(model, qpos, fps, groups, segments)
+    text = bld.g.to_json(separators=(",", ":")).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    start = f.tell()
+    f.write(struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + bld.size))
+    f.write(struct.pack("<I4s", len(text), b"JSON") + text)
+    f.write(struct.pack("<I4s", bld.size, b"BIN\0"))
+    base = f.tell()
+    f.write(bld.blob)
+    _write_animation(f, base, bld, qpos, fps, plan, chunk)
+    assert f.tell() - start == 12 + 8 + len(text) + 8 + bld.size
+
+
+def write_gltf_json(
+    f,
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    fps: float,
+    *,
+    groups=VISUAL_GROUPS,
+    segments: int = SEGMENTS,
+    chunk: int = mo.CHUNK,
+) -> None:
+    """Write the ``.gltf`` (JSON, the buffer embedded as a base64 data URI) to the text
+    file ``f``: the buffer goes to an anonymous temporary file first, then is encoded a
+    piece at a time (bounded memory); arguments as :func:`build_gltf`."""
+    bld, plan = _prepare(model, qpos, fps, groups, segments)
+    head = json.loads(bld.g.to_json())
+    del head["buffers"]
+    # the JSON without its buffers, which close it: no user string is ever scanned
+    f.write(json.dumps(head)[:-1])
+    f.write(f', "buffers": [{{"byteLength": {bld.size}, "uri": "{_DATA_URI}')
+    with tempfile.TemporaryFile() as tmp:
+        tmp.write(bld.blob)
+        _write_animation(tmp, 0, bld, qpos, fps, plan, chunk)
+        tmp.seek(0)
+        while piece := tmp.read(3 * 2**16):  # whole groups of 3 bytes: no padding inside
+            f.write(base64.b64encode(piece).decode("ascii"))
+    f.write('"}]}')
+
+
+_DATA_URI = "data:application/octet-stream;base64,"
+
+
+def glb_bytes(model: mujoco.MjModel, qpos: np.ndarray, fps: float, **kw) -> bytes:
+    """The GLB file's bytes (see :func:`build_gltf`)."""
+    f = io.BytesIO()
+    write_glb(f, model, qpos, fps, **kw)
+    return f.getvalue()
 
 
 def build_gltf(
@@ -195,7 +333,8 @@ def build_gltf(
     groups=VISUAL_GROUPS,
     segments: int = SEGMENTS,
 ):
-    """The signer and its motion as a ``pygltflib.GLTF2`` with one binary blob.
+    """The signer and its motion as a ``pygltflib.GLTF2`` with one binary blob, in memory
+    (:func:`write_gltf` writes a file in bounded memory instead).
 
     Args:
       model: the signer.
@@ -205,40 +344,18 @@ def build_gltf(
       segments: tessellation resolution around a primitive's axis.
     """
     gl = mo.require("pygltflib", "glTF")
-    mo.check_qpos(model, qpos, fps)
-    names = mo.body_names(model)
-    rot, slide = mo.moving_bodies(model)
-    pos, quat = mo.body_frames(model, np.asarray(qpos, float))
-    lpos, lquat = mo.local_frames(model, pos, quat)
-
-    bld = _Builder(gl, model)
-    body_mesh = _add_meshes(bld, names, groups, segments)
-    _add_nodes(bld, names, body_mesh, lpos, lquat)
-    _add_animation(bld, len(qpos), fps, rot, slide, lpos, lquat)
-    g = bld.g
-    g.buffers = [gl.Buffer(byteLength=len(bld.blob))]
-    g.set_binary_blob(bytes(bld.blob))
-    return g
-
-
-def glb_bytes(model: mujoco.MjModel, qpos: np.ndarray, fps: float, **kw) -> bytes:
-    """The GLB file's bytes (see :func:`build_gltf`)."""
-    return b"".join(build_gltf(model, qpos, fps, **kw).save_to_bytes())
+    return gl.GLTF2.load_from_bytes(glb_bytes(model, qpos, fps, groups=groups, segments=segments))
 
 
 def write_gltf(
     path: str | os.PathLike, model: mujoco.MjModel, qpos: np.ndarray, fps: float, **kw
 ) -> None:
     """Write ``.glb`` (binary) or ``.gltf`` (JSON with the buffer embedded as a data URI)
-    to ``path`` as it is (the caller makes it atomic)."""
-    g = build_gltf(model, qpos, fps, **kw)
+    to ``path`` as it is (the caller makes it atomic), the motion a chunk of frames at a
+    time: memory does not grow with the number of frames."""
     if str(path).lower().endswith(".glb"):
         with open(path, "wb") as f:
-            f.write(b"".join(g.save_to_bytes()))
+            write_glb(f, model, qpos, fps, **kw)
     else:
-        data = g.binary_blob()
-        g.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode(
-            "ascii"
-        )
-        with open(path, "w") as f:
-            f.write(g.to_json())
+        with open(path, "w", encoding="ascii") as f:
+            write_gltf_json(f, model, qpos, fps, **kw)

@@ -178,21 +178,24 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def local_frames(
-    model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray
+    model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray, prev: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each body's pose in its parent's frame, (T, nbody, 3) and (T, nbody, 4) ``wxyz``,
     from world frames as :func:`body_frames` gives them (the world body keeps its own).
     Quaternion signs are made continuous in time (no flip between consecutive frames) for
-    readers that interpolate."""
+    readers that interpolate; ``prev``: the local quaternions (nbody, 4) of the frame just
+    before these (the previous chunk's last), so that signs stay continuous across chunks."""
     parent = np.array(model.body_parentid)
     inv = quat[:, parent] * np.array([1.0, -1.0, -1.0, -1.0])
     lquat = quat_mul(inv, quat)
     lquat /= np.linalg.norm(lquat, axis=-1, keepdims=True)
     lpos = quat_rotate(inv, pos - pos[:, parent])
     lpos[:, 0], lquat[:, 0] = pos[:, 0], quat[:, 0]
-    for k in range(1, len(pos)):
-        flip = np.sum(lquat[k] * lquat[k - 1], axis=1) < 0
-        lquat[k, flip] *= -1
+    for k in range(len(pos)):
+        before = lquat[k - 1] if k else prev
+        if before is not None:
+            flip = np.sum(lquat[k] * before, axis=1) < 0
+            lquat[k, flip] *= -1
     return lpos, lquat
 
 

@@ -198,10 +198,12 @@ def _cmd_check(args, run: _Run) -> int:
     rollout = load_rollout(args.rollout, model.nq, allow_nonfinite=True)  # NaN: a finding
     score, solver = None, None
     if args.score:
+        from azee_mj.rollout_io import realized_score
         from azee_mj.schedule import make_solver
         from azee_mj.score import load_score
 
-        score, solver = load_score(run.score_path(args.score, args.lexicon)), make_solver()
+        score = realized_score(load_score(run.score_path(args.score, args.lexicon)), args.rollout)
+        solver = make_solver()
     report = rollout_verdict(model, rollout, score, solver)
     lines = summary(report, rollout.fps).splitlines()
     ok = report.clean

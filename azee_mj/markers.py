@@ -23,7 +23,7 @@ from azee_mj import score as sc
 from azee_mj.errors import AzeeError
 from azee_mj.kinematics import Unit
 from azee_mj.model import load_model
-from azee_mj.rollout_io import load_rollout
+from azee_mj.rollout_io import load_rollout, realized_score
 from azee_mj.schedule import Compiler, TrackInterval, make_solver, schedule, shifted
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timeline import realize
@@ -137,7 +137,7 @@ def load_clip(
             f"{path}: expected a SCORE.json or a ROLLOUT.npz, got suffix {path.suffix!r}"
         )
     r = load_rollout(path, load_model().nq)
-    given = sc.load_score(Path(score)) if score else None
+    given = realized_score(sc.load_score(Path(score)), path) if score else None
     sched = shifted(schedule_of(given), r.score_start) if given is not None else {}
     return Clip(r.time, r.qpos, r.fps, sched, given, path.stem, r.score_start)
 

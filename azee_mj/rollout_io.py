@@ -42,6 +42,7 @@ from azee_mj.files import save_npz
 from azee_mj.frames import Frames, NpzFrames, nonfinite_frames
 from azee_mj.physics import DynamicRollout
 from azee_mj.schedule import TrackInterval
+from azee_mj.score import Score
 from azee_mj.timeline import ConstraintTrace, Finding, Mode, Rollout, SolveStats
 from azee_mj.timing import MAX_FPS, MAX_FRAMES, MIN_FPS
 
@@ -205,6 +206,27 @@ def rollout_options(path: str | os.PathLike) -> str | None:
     except (KeyError, OSError, ValueError, zipfile.BadZipFile, EOFError):
         return None
     return str(a) if a.shape == () and a.dtype.kind == "U" else None
+
+
+def recorded_tempo(path: str | os.PathLike) -> float:
+    """The ``--tempo`` the rollout file at ``path`` was realized at (its options
+    fingerprint's ``tempo``; 1 when it records none)."""
+    for part in (rollout_options(path) or "").split(";"):
+        key, _, value = part.partition("=")
+        if key == "tempo":
+            try:
+                tempo = float(value)
+            except ValueError:
+                break
+            return tempo if np.isfinite(tempo) and tempo > 0 else 1.0
+    return 1.0
+
+
+def realized_score(score: Score, path: str | os.PathLike) -> Score:
+    """``score`` as the rollout at ``path`` realized it: at its recorded tempo
+    (:func:`recorded_tempo`), so block times match the rollout's frames."""
+    tempo = recorded_tempo(path)
+    return score.at_tempo(tempo) if tempo != 1.0 else score
 
 
 #: Arrays read lazily, a block of frames at a time (when stored as C-order float64).

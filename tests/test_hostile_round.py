@@ -367,3 +367,17 @@ def test_dynamics_follows_the_tempo_and_rest_options(tmp_path, capsys):
     assert fast < plain and fast_met == met  # the simulation follows the score at its tempo
     still, _ = frames("--no-rest")
     assert still < plain
+
+
+def test_a_rollout_at_another_tempo_is_checked_and_drawn_at_that_tempo(capsys, tmp_path):
+    from azee_mj.markers import load_clip
+    from azee_mj.rollout_io import recorded_tempo
+
+    score, out = ROOT / "examples" / "armoire.json", tmp_path / "fast.npz"
+    code, said, _ = _run(capsys, "realize", score, "-o", out, "--tempo", "2")
+    assert code == 0 and "10/10 constraints within tolerance" in said
+    assert recorded_tempo(out) == 2.0
+    code, said, _ = _run(capsys, "check", out, "--score", score)
+    assert "10/10 constraints within tolerance" in said.splitlines()  # was 0/10 at tempo 1
+    clip = load_clip(out, score=score)
+    assert clip.score.duration == pytest.approx(json.loads(score.read_text())["root"]["end"] / 2)

@@ -65,7 +65,7 @@ def load_motion(
     from azee_mj import score as sc
     from azee_mj import timeline
     from azee_mj.model import load_model
-    from azee_mj.rollout_io import load_rollout
+    from azee_mj.rollout_io import load_rollout, realized_score
     from azee_mj.schedule import schedule, shifted
 
     path = Path(path)
@@ -88,7 +88,8 @@ def load_motion(
         )
     sched = r.schedule
     if score is not None:
-        sched = shifted(schedule(sc.load_score(Path(score))), r.score_start)
+        given = realized_score(sc.load_score(Path(score)), path)
+        sched = shifted(schedule(given), r.score_start)
     return Motion(np.asarray(r.qpos, float), float(r.fps), schedule_tuples(sched), path.stem)
 
 

@@ -309,14 +309,19 @@ def worker_name() -> str:
 
 
 def findings(score: Score, rollout: Rollout, solver: Solver) -> int:
-    """How many findings ``azee-mj check --score`` reports on ``rollout``: penetrations,
-    joint-range violations and non-finite postures."""
-    from azee_mj.check import check_poses
-    from azee_mj.schedule import contact_pairs
+    """How many findings ``azee-mj check --score`` reports on ``rollout`` (``score`` as
+    realized, at its tempo): the penetrations, joint-range violations and non-finite
+    postures or sites of its verdict, on the signer ``check`` loads, and the speeds over the
+    human range."""
+    from azee_mj.check import rollout_verdict
+    from azee_mj.model import load_model
+    from azee_mj.timeline import rollout_speed_findings
 
-    allowed = contact_pairs(score, rollout.time, solver, rollout.score_start)
-    report = check_poses(solver.model, rollout.qpos, allowed=allowed)
-    return len(report.penetrations) + len(report.range_violations) + len(report.nonfinite)
+    if getattr(_LOCAL, "check_model", None) is None:
+        _LOCAL.check_model = load_model()
+    v = rollout_verdict(_LOCAL.check_model, rollout, score, solver)
+    found = (v.penetrations, v.range_violations, v.nonfinite, v.nonfinite_sites)
+    return sum(map(len, found)) + len(rollout_speed_findings(score, rollout, solver))
 
 
 def run_job(

@@ -493,3 +493,21 @@ def test_scheduler_mistakes_are_one_clear_line(tmp_path, capsys):
         "azee-mj: error: --scheduler nonsense://x: cannot reach a Dask scheduler ("
     )
     assert list(out.iterdir()) == []
+
+
+def test_the_manifest_counts_the_findings_check_says(tmp_path, capsys):
+    # armoire's hands come down over the human wrist speed: check --score says two findings
+    # (and exits 1, as realize --strict); the manifest's count used to leave speeds out.
+    score = Path(__file__).resolve().parent.parent / "examples" / "armoire.json"
+    src, out, manifest = tmp_path / "src", tmp_path / "out", tmp_path / "m.jsonl"
+    src.mkdir()
+    out.mkdir()
+    (src / "armoire.json").write_text(score.read_text())
+    assert main(["realize", str(src), "-o", str(out), "--manifest", str(manifest)]) == 0
+    capsys.readouterr()
+    assert main(["check", str(out / "armoire.npz"), "--score", str(score)]) == 1
+    said = capsys.readouterr().out.splitlines()
+    found = [line for line in said if line.startswith("  finding: ")]
+    assert "clean: no penetration over the limit, every joint inside its range" in said
+    assert len(found) == 2 and all("m/s (limit 3.00)" in line for line in found)
+    assert [r["findings"] for r in read_manifest(manifest)] == [2]

@@ -44,6 +44,8 @@ from azee_mj.blend import (
     rest_duration,
     track_curve,
 )
+from azee_mj.detour import Detour
+from azee_mj.detour import runs as runs_of
 from azee_mj.errors import AzeeError
 from azee_mj.framesolver import (
     CURVE_TOL,
@@ -96,14 +98,6 @@ RESAMPLE_TOL = 2e-3
 MAX_PUSHED = 0.5
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
 FLAT_PATH_KEYS = 6
-
-
-def runs_of(flags: np.ndarray) -> list[tuple[int, int]]:
-    """Frame ranges ``(a, b)`` around each run of True in ``flags`` (T,): from the frame
-    before it (at rest) to the first frame after it, within the frames."""
-    edges = np.flatnonzero(np.diff(np.r_[False, flags, False].astype(np.int8)))
-    n = len(flags)
-    return [(max(a - 1, 0), min(b, n - 1)) for a, b in zip(edges[::2], edges[1::2])]
 
 
 def coupled(runs: list[tuple]) -> list[list[tuple]]:
@@ -420,6 +414,7 @@ class Motion:
             )
         if flattened:
             return self.flat_transpaths(q, times)
+        Detour(self.adapter).apply(q, times, moving, names)
         solver = FrameSolver(self.adapter, self.fps)
         q = solver.solve(q, times, moving, names, keys)
         return Pacer(self.adapter, self.fps).pace(q, times, moving, names, solver.held_frames)

@@ -1,0 +1,140 @@
+"""Blends that go around the body: a straight joint-space blend between two postures of an
+arm that passes through the body (the other forearm, the trunk) is bent, before any frame
+is solved, through a via posture out of the body, in one movement.
+
+Solving such a blend frame by frame pushes each frame out of the body in turn: the hand
+stops at the obstacle, frames repeat, then jump. A signer moves the hand around it in one
+smooth movement. So for each blend of an arm whose frames go into the body, the posture at
+its deepest frame is pushed out by the solver (nearest it, the arm's joints only): the
+via. The blend becomes ``qa + s (qb - qa) + bump(s) (via - blend(s_via))``, with ``s`` the
+blend's own minimum-jerk progress and ``bump`` a smooth bell, 0 with zero slope at both
+ends and 1 at ``s_via``: key, via and key in one movement, at rest at both ends. The via
+is pushed further (:data:`REACH`) until no frame of the bent blend goes in; a blend that
+cannot be bent out of the body is left straight (the frame solver pushes it out).
+
+Units: radians, seconds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from azee_mj import constraints as cn
+from azee_mj.blend import minjerk
+from azee_mj.ikadapter import IKAdapter
+
+#: How far a bend goes, over the via's offset from the blend: the via itself only just
+#: clears the body, the frames around it may not.
+REACH = 1.25
+#: Most bends a blend takes (each at its deepest frame still in the body).
+BENDS = 12
+#: How deep [m] a bent blend may still go into the body: the frame solver pushes such
+#: frames out by a few millimetres, with no jump.
+SHALLOW = 5e-3
+#: A via's progress along the blend is kept this far from its ends (a bend at an end
+#: would be a jerk).
+EDGE = 0.05
+
+
+def bump(s: np.ndarray, at: float) -> np.ndarray:
+    """(n,) a smooth bell over blend progress ``s`` (n,) in [0, 1]: 0 with zero slope at
+    0 and 1, 1 with zero slope at ``at`` (in (0, 1)), a minimum-jerk rise and fall."""
+    s = np.clip(s, 0.0, 1.0)
+    up = minjerk(np.clip(s / at, 0.0, 1.0))
+    down = minjerk(np.clip((1.0 - s) / (1.0 - at), 0.0, 1.0))
+    return np.where(s <= at, up, down)
+
+
+def progress(q: np.ndarray) -> np.ndarray:
+    """(n,) how far along each row of ``q`` (n, d) is on the straight line from its first
+    row to its last, 0 to 1."""
+    span = q[-1] - q[0]
+    den = float(span @ span)
+    if den <= 0.0:
+        return np.linspace(0.0, 1.0, len(q))
+    return np.clip((q - q[0]) @ span / den, 0.0, 1.0)
+
+
+def runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """``(a, b)`` of each run of True in ``flags`` (T,): from the frame before it to the
+    frame after it, within the frames."""
+    edges = np.flatnonzero(np.diff(np.r_[False, flags, False].astype(np.int8)))
+    n = len(flags)
+    return [(max(a - 1, 0), min(b, n - 1)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+class Detour:
+    """Bends the blends of the arm tracks through ``adapter`` around the body."""
+
+    def __init__(self, adapter: IKAdapter):
+        self.adapter, self.schedule = adapter, adapter.schedule
+        #: Blends bent, as ``(track, first frame, last frame)``.
+        self.bent: list[tuple[str, int, int]] = []
+
+    def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
+        """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
+        ``q`` (T, nq) at ``times`` [s] that goes into the body, bent out of it (in place)."""
+        for ti, t in enumerate(names):
+            if not t.startswith("arm_"):
+                continue
+            d = self.schedule.track_dofs[t]
+            joints = sorted(self.schedule.track_joints[t])
+            for a, b in runs(moving[:, ti]):
+                if b - a >= 4:
+                    new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
+                    if new is not None:
+                        q[a : b + 1, d] = new
+                        self.bent.append((t, a, b))
+        return q
+
+    def bent_run(self, run, times, d, joints) -> np.ndarray | None:
+        """The dofs ``d`` of the arm (``joints``) over the blend ``run`` (n, nq) at
+        ``times`` bent around the body, or None: the blend stays out of it, or no bend
+        found within :data:`BENDS` keeps every frame out."""
+        inside = self.inside(run, times)
+        if not inside.any():
+            return None
+        ad = self.adapter
+        s = progress(run[:, d])
+        path = run.copy()
+        for _ in range(BENDS):
+            depth = self.depths(path, times)
+            if depth[1:-1].max() <= cn.COLLISION_TOL:
+                break
+            m = self.via_frame(depth, s)
+            soft = ad.soft_targets(path[m], joints)
+            via = ad.solve(soft, joints, path[m], times[m]).qpos
+            if ad.penetrates(via, times[m]):
+                return None
+            path[:, d] += bump(s, s[m])[:, None] * (REACH * (via[d] - path[m, d]))
+        return path[:, d] if self.depths(path, times).max() <= SHALLOW else None
+
+    def via_frame(self, depth: np.ndarray, s: np.ndarray) -> int:
+        """The frame to bend at: the deepest inner one, its progress ``s`` kept
+        :data:`EDGE` from the ends."""
+        m = int(np.argmax(depth[1:-1])) + 1
+        at = float(np.clip(s[m], EDGE, 1.0 - EDGE))
+        return int(np.argmin(np.abs(s - at)))
+
+    def inside(self, run, times) -> np.ndarray:
+        """(n-2,) whether each inner frame of ``run`` goes into the body."""
+        return self.depths(run, times)[1:-1] > cn.COLLISION_TOL
+
+    def depths(self, run: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """(n,) how deep [m] each frame of ``run`` (n, nq) goes into the body (beyond what
+        the contacts of its time allow) further than its keys (the first and last frames,
+        weighed by how far it is from each): a hand leaving a contact (or reaching one)
+        may touch as its key does."""
+        sched = self.schedule
+        s = np.linspace(0.0, 1.0, len(run))
+        out = np.empty(len(run))
+        for i, (x, t) in enumerate(zip(run, times)):
+            allowed = sched.allowed_at(t)
+            ends = (1.0 - s[i]) * self.depth(run[0], allowed) + s[i] * self.depth(run[-1], allowed)
+            out[i] = max(self.depth(x, allowed) - ends, 0.0)
+        return out
+
+    def depth(self, q: np.ndarray, allowed) -> float:
+        """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``."""
+        k = self.adapter.at(q)
+        return cn.penetration_depth(k.m, k.d, allowed)

@@ -73,18 +73,23 @@ class Detour:
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
-        ``q`` (T, nq) at ``times`` [s] that goes into the body, bent out of it (in place)."""
+        ``q`` (T, nq) at ``times`` [s] that goes into the body, bent out of it (in place).
+        The blends that move their joints furthest go first: of two arms whose blends meet,
+        the one that travels goes around the other, which may then stay straight."""
+        blends = []
         for ti, t in enumerate(names):
-            if not t.startswith("arm_"):
-                continue
+            if t.startswith("arm_"):
+                d = self.schedule.track_dofs[t]
+                for a, b in runs(moving[:, ti]):
+                    if b - a >= 4:
+                        blends.append((-float(np.abs(q[b, d] - q[a, d]).sum()), t, a, b))
+        for _, t, a, b in sorted(blends):
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
-            for a, b in runs(moving[:, ti]):
-                if b - a >= 4:
-                    new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
-                    if new is not None:
-                        q[a : b + 1, d] = new
-                        self.bent.append((t, a, b))
+            new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
+            if new is not None:
+                q[a : b + 1, d] = new
+                self.bent.append((t, a, b))
         return q
 
     def bent_run(self, run, times, d, joints) -> np.ndarray | None:

@@ -20,12 +20,16 @@ from __future__ import annotations
 import numpy as np
 
 from azee_mj import constraints as cn
+from azee_mj import movement as mv
 from azee_mj.blend import minjerk
 from azee_mj.ikadapter import IKAdapter
 
 #: How far a bend goes, over the via's offset from the blend: the via itself only just
 #: clears the body, the frames around it may not.
 REACH = 1.25
+#: Fastest a bend may move a wrist [m/s] (the human range the report holds rollouts to)
+#: where the straight blend did not.
+FASTEST = 3.0
 #: Most bends a blend takes (each at its deepest frame still in the body).
 BENDS = 12
 #: How deep [m] a bent blend may still go into the body: the frame solver pushes such
@@ -87,10 +91,27 @@ class Detour:
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
             new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
-            if new is not None:
+            if new is not None and not self.rushed(q[a : b + 1], new, d, t, times):
                 q[a : b + 1, d] = new
                 self.bent.append((t, a, b))
         return q
+
+    def rushed(self, run: np.ndarray, new: np.ndarray, d, track: str, times) -> bool:
+        """Whether the bent blend (``new``, the dofs ``d`` of arm ``track`` over the blend
+        ``run`` (n, nq)) moves its wrist faster than :data:`FASTEST` where the straight
+        one did not: a longer path in the same time."""
+        site = self.schedule.smap.sites.get(f"WR_{track.removeprefix('arm_')}")
+        if site is None or len(times) < 2:
+            return False
+        sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
+        bent = run.copy()
+        bent[:, d] = new
+
+        def peak(frames):
+            pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
+            return float(mv.speed(pos, fps).max())
+
+        return peak(bent) > max(peak(run), FASTEST)
 
     def bent_run(self, run, times, d, joints) -> np.ndarray | None:
         """The dofs ``d`` of the arm (``joints``) over the blend ``run`` (n, nq) at

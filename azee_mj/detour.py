@@ -122,18 +122,24 @@ class Detour:
             return None
         ad = self.adapter
         s = progress(run[:, d])
-        path = run.copy()
+        path, best, least = run.copy(), None, np.inf
         for _ in range(BENDS):
             depth = self.depths(path, times)
-            if depth[1:-1].max() <= cn.COLLISION_TOL:
+            if depth.max() < least:
+                best, least = path[:, d].copy(), depth.max()
+            if least <= cn.COLLISION_TOL:
                 break
             m = self.via_frame(depth, s)
             soft = ad.soft_targets(path[m], joints)
-            via = ad.solve(soft, joints, path[m], times[m]).qpos
-            if ad.penetrates(via, times[m]):
-                return None
-            path[:, d] += bump(s, s[m])[:, None] * (REACH * (via[d] - path[m, d]))
-        return path[:, d] if self.depths(path, times).max() <= SHALLOW else None
+            via = ad.solve(soft, joints, path[m], times[m])
+            if via.penetration > cn.PENETRATION_LIMIT:
+                break
+            path[:, d] += bump(s, s[m])[:, None] * (REACH * (via.qpos[d] - path[m, d]))
+        else:
+            depth = self.depths(path, times)
+            if depth.max() < least:
+                best, least = path[:, d].copy(), depth.max()
+        return best if least <= SHALLOW else None
 
     def via_frame(self, depth: np.ndarray, s: np.ndarray) -> int:
         """The frame to bend at: the deepest inner one, its progress ``s`` kept

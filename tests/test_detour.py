@@ -1,0 +1,81 @@
+"""Blends bent around the body (azee_mj/detour.py): its pure functions, and the arbre ->
+info-about transition on the real model, where the straight blend goes through the other
+forearm."""
+
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from azee_mj import detour as dt
+from azee_mj import movement as mv
+from azee_mj.blend import minjerk
+from azee_mj.model import load_model
+from azee_mj.score import load_score
+from azee_mj.timeline import realize
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+FPS = 50.0
+
+
+@pytest.mark.parametrize("at", [0.1, 0.3, 0.5, 0.8])
+def test_a_bump_is_zero_at_the_ends_one_at_its_top_with_flat_ends_and_top(at):
+    s = np.linspace(0.0, 1.0, 2001)
+    b = dt.bump(s, at)
+    assert b[0] == 0.0 and b[-1] == 0.0
+    assert dt.bump(np.array([at]), at)[0] == pytest.approx(1.0)
+    assert b.min() >= 0.0 and b.max() == pytest.approx(1.0)
+    slope = np.gradient(b, s)
+    top = int(np.argmin(np.abs(s - at)))
+    assert abs(slope[0]) < 1e-2 and abs(slope[-1]) < 1e-2 and abs(slope[top]) < 1e-1
+    assert np.all(np.diff(b[: top + 1]) >= 0.0) and np.all(np.diff(b[top:]) <= 0.0)
+
+
+def test_progress_of_a_straight_blend_is_its_minimum_jerk_fraction():
+    u = minjerk(np.linspace(0.0, 1.0, 21))
+    qa, qb = np.array([0.1, -0.4, 1.0]), np.array([0.7, 0.2, 0.5])
+    q = qa + u[:, None] * (qb - qa)
+    np.testing.assert_allclose(dt.progress(q), u, atol=1e-12)
+
+
+def test_runs_span_from_the_frame_before_to_the_frame_after():
+    flags = np.array([False, True, True, False, False, True, True])
+    assert dt.runs(flags) == [(0, 3), (4, 6)]
+
+
+def two_signs(first: str, second: str) -> dict:
+    """A score of two bundled examples, 0.1 s apart (strong side R)."""
+    children, t = [], 0.0
+    for i, n in enumerate((first, second)):
+        root = json.loads((EXAMPLES / f"{n}.json").read_text())["root"]
+        d = root["end"] - root["start"]
+        children.append({**root, "name": f"S{i}_{root['name']}", "start": t, "end": t + d})
+        t += d + 0.1
+    root = {"name": "TWO", "kind": "sync", "start": 0.0, "end": t, "children": children}
+    return {"format": "azee-score", "version": 1, "strong_side": "R", "root": root}
+
+
+def test_leaving_arbre_the_right_hand_goes_around_the_left_forearm_without_a_jump():
+    r = realize(load_score(two_signs("arbre", "info-about")), fps=FPS)
+    pos = r.site_pos[:, r.site_names.index("WR_R")]
+    start = r.score_start
+    arbre_end = json.loads((EXAMPLES / "arbre.json").read_text())["root"]["end"]
+    moves = [
+        m
+        for m in mv.movements(pos, FPS)
+        if r.time[m.first] <= start + arbre_end + 0.3 <= r.time[m.last]
+    ]
+    assert len(moves) == 1
+    m = moves[0]
+    assert m.peak_speed < 3.0  # the human range; stopped at the forearm and thrown past, 3.8
+    sel = slice(m.first, m.last + 1)
+    path = np.linalg.norm(np.diff(pos[sel], axis=0), axis=1).sum()
+    net = np.linalg.norm(pos[m.last] - pos[m.first])
+    assert path < 1.25 * net  # around the forearm, not stopped at it and thrown past it
+    m_ = load_model()
+    names = [mujoco.mj_id2name(m_, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m_.njnt)]
+    arm = [m_.jnt_qposadr[j] for j, n in enumerate(names) if n.startswith(("arm_R", "f_arm_R"))]
+    jump = np.abs(np.diff(r.qpos[sel][:, arm], axis=0)).max()
+    assert jump < np.radians(10.0)

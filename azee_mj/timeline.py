@@ -127,8 +127,7 @@ def realize(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     score = at_tempo(score, tempo, hold)
-    mode = Mode(mode) if isinstance(mode, str) else mode
-    fps = check_fps(fps, "fps")
+    mode, fps = Mode(mode), check_fps(fps, "fps")
     if rest and mode is Mode.MULTITRACK:
         check_room(score.duration, fps, hold)
     smap = signer_map or DEFAULT_MAP

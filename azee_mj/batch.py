@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from azee_mj.errors import AzeeError
-from azee_mj.lifeline import lifeline
+from azee_mj.lifeline import lifeline, worker_context
 
 if TYPE_CHECKING:
     from azee_mj.azee import Lexicon
@@ -404,15 +404,6 @@ def largest_first(jobs: Sequence[Job]) -> list[int]:
     return sorted(range(len(jobs)), key=lambda i: -_size(jobs[i].score))
 
 
-def _pool_context():
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        # Import once in the server (if not started yet), not in every worker.
-        ctx.set_forkserver_preload(list(_PRELOAD))
-        return ctx
-    return multiprocessing.get_context("spawn")
-
-
 @contextlib.contextmanager
 def _pool(workers: int, lexicon: tuple[str, ...]):
     """A process pool whose workers end with this process; any exception here (Ctrl-C,
@@ -420,7 +411,7 @@ def _pool(workers: int, lexicon: tuple[str, ...]):
     before = set(multiprocessing.active_children())
     pool = ProcessPoolExecutor(
         workers,
-        mp_context=_pool_context(),
+        mp_context=worker_context(_PRELOAD),
         initializer=_init_worker,
         initargs=(lexicon, os.getpid()),
     )

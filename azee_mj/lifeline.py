@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 #: How often a worker looks whether its batch process is still alive [s].
@@ -71,3 +72,28 @@ def lifeline(parent: int) -> None:
         os._exit(EXIT_ORPHANED)
 
     threading.Thread(target=watch, name="azee-mj lifeline", daemon=True).start()
+
+
+def worker_context(preload: Sequence[str]):
+    """The multiprocessing context workers start from: ``forkserver`` where there is one,
+    its server started now with ``preload`` imported once (not in every worker), else
+    ``spawn``. The server starts with ``PYTHONSAFEPATH``: without it, Python (3.11) puts
+    the working folder first on the server's module path, so a user's ``timeit.py`` or
+    ``random.py`` there would be imported (run) instead of the standard module."""
+    import multiprocessing
+    import multiprocessing.forkserver
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(preload))
+    old = os.environ.get("PYTHONSAFEPATH")
+    os.environ["PYTHONSAFEPATH"] = "1"
+    try:
+        multiprocessing.forkserver.ensure_running()
+    finally:
+        if old is None:
+            del os.environ["PYTHONSAFEPATH"]
+        else:
+            os.environ["PYTHONSAFEPATH"] = old
+    return ctx

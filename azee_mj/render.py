@@ -578,13 +578,9 @@ class _Workers:
     of it."""
 
     def __init__(self, count: int, camera: str, size, antialias: bool):
-        import multiprocessing
+        from azee_mj.lifeline import worker_context
 
-        if "forkserver" in multiprocessing.get_all_start_methods():
-            ctx: Any = multiprocessing.get_context("forkserver")
-            ctx.set_forkserver_preload(["azee_mj.render"])  # imports once, not per worker
-        else:
-            ctx = multiprocessing.get_context("spawn")
+        ctx: Any = worker_context(["azee_mj.render"])
         w, h = render_size(size, antialias)
         job = _WorkerJob(gl_backend(), camera, (int(size[0]), int(size[1])), antialias)
         self.procs, self.todo, self.done, self.views = [], [], [], []

@@ -536,6 +536,33 @@ def test_the_rendering_snippet_works_as_pasted(tmp_path, how):
     assert (tmp_path / "bien.mp4").stat().st_size > 10_000
 
 
+@pytest.mark.parametrize("command", ["render", "realize"])
+def test_a_module_in_the_working_folder_is_never_imported_by_workers(tmp_path, command):
+    # Python 3.11's forkserver puts the working folder first on its module path: a user's
+    # timeit.py there was run instead of the standard module ("internal error (EOFError)").
+    exe = Path(sys.executable).parent / "azee-mj"
+    if not exe.exists():
+        pytest.skip("needs the installed azee-mj command")
+    (tmp_path / "timeit.py").write_text("open('ran', 'w').close()\nraise SystemExit(7)\n")
+    bien = str(ROOT / "examples" / "bien.json")
+    if command == "render":
+        pytest.importorskip("PIL", reason="GIF needs azee_mj[render]")
+        argv = ["render", bien, "-o", "b.gif", "--size", "240x200", "--fps", "10"]
+    else:
+        (tmp_path / "in").mkdir()
+        (tmp_path / "out").mkdir()
+        for name in ("bien", "arbre"):
+            (tmp_path / "in" / f"{name}.json").write_text(
+                (ROOT / "examples" / f"{name}.json").read_text()
+            )
+        argv = ["realize", "in", "-o", "out/", "--jobs", "2", "--fps", "10"]
+    p = subprocess.run(
+        [str(exe), *argv], capture_output=True, text=True, cwd=tmp_path, timeout=300, check=False
+    )
+    assert (p.returncode, "internal error" in p.stderr) == (0, False)
+    assert not (tmp_path / "ran").exists()
+
+
 def test_the_readme_single_posture_snippet_runs():
     text = (ROOT / "README.md").read_text()
     code = text.split("Single postures:", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]

@@ -62,9 +62,8 @@ def progress(q: np.ndarray) -> np.ndarray:
 def runs(flags: np.ndarray) -> list[tuple[int, int]]:
     """``(a, b)`` of each run of True in ``flags`` (T,): from the frame before it to the
     frame after it, within the frames."""
-    edges = np.flatnonzero(np.diff(np.r_[False, flags, False].astype(np.int8)))
     n = len(flags)
-    return [(max(a - 1, 0), min(b, n - 1)) for a, b in zip(edges[::2], edges[1::2])]
+    return [(max(a - 1, 0), min(b + 1, n - 1)) for a, b in mv.runs(flags)]
 
 
 class Detour:

@@ -16,6 +16,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from azee_mj.movement import runs
 from azee_mj.rollout import ConstraintTrace, Finding
 from azee_mj.schedule import TrackInterval
 
@@ -25,15 +26,6 @@ WRIST_LIMIT = 3.0
 JOINT_LIMIT = 25.0
 #: The wrist sites checked, and the arm track that moves each.
 WRISTS = {"WR_R": "arm_R", "WR_L": "arm_L"}
-
-
-def runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    """``(first, last)`` frame indices of each run of consecutive True ``flags``."""
-    f = np.flatnonzero(flags)
-    if not f.size:
-        return []
-    cut = np.flatnonzero(np.diff(f) > 1)
-    return list(zip(f[np.r_[0, cut + 1]].tolist(), f[np.r_[cut, len(f) - 1]].tolist()))
 
 
 def frame_speeds(x: np.ndarray, fps: float) -> np.ndarray:

@@ -119,6 +119,15 @@ class Movement:
     power_law: float  # NaN on a straight path
 
 
+def runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """``(first, last)`` frame indices of each run of consecutive True ``flags``."""
+    f = np.flatnonzero(flags)
+    if not f.size:
+        return []
+    cut = np.flatnonzero(np.diff(f) > 1)
+    return list(zip(f[np.r_[0, cut + 1]].tolist(), f[np.r_[cut, len(f) - 1]].tolist()))
+
+
 def segments(sp: np.ndarray, fs: float) -> list[tuple[int, int]]:
     """Frame ranges ``(first, last)`` where speed ``sp`` exceeds the moving threshold,
     pauses shorter than :data:`MERGE_GAP` bridged; each range is widened to the frames where

@@ -116,14 +116,15 @@ class Detour:
         """The dofs ``d`` of the arm (``joints``) over the blend ``run`` (n, nq) at
         ``times`` bent around the body, or None: the blend stays out of it, or no bend
         found within :data:`BENDS` keeps every frame out."""
-        inside = self.inside(run, times)
-        if not inside.any():
+        depth = self.depths(run, times)
+        if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
         ad = self.adapter
         s = progress(run[:, d])
         path, best, least = run.copy(), None, np.inf
-        for _ in range(BENDS):
-            depth = self.depths(path, times)
+        for k in range(BENDS):
+            if k:
+                depth = self.depths(path, times)
             if depth.max() < least:
                 best, least = path[:, d].copy(), depth.max()
             if least <= cn.COLLISION_TOL:
@@ -147,10 +148,6 @@ class Detour:
         at = float(np.clip(s[m], EDGE, 1.0 - EDGE))
         return int(np.argmin(np.abs(s - at)))
 
-    def inside(self, run, times) -> np.ndarray:
-        """(n-2,) whether each inner frame of ``run`` goes into the body."""
-        return self.depths(run, times)[1:-1] > cn.COLLISION_TOL
-
     def depths(self, run: np.ndarray, times: np.ndarray) -> np.ndarray:
         """(n,) how deep [m] each frame of ``run`` (n, nq) goes into the body (beyond what
         the contacts of its time allow) further than its keys (the first and last frames,
@@ -159,10 +156,13 @@ class Detour:
         sched = self.schedule
         s = np.linspace(0.0, 1.0, len(run))
         out = np.empty(len(run))
+        keys: dict[frozenset, tuple[float, float]] = {}  # the keys' depths, per allowed set
         for i, (x, t) in enumerate(zip(run, times)):
             allowed = sched.allowed_at(t)
-            ends = (1.0 - s[i]) * self.depth(run[0], allowed) + s[i] * self.depth(run[-1], allowed)
-            out[i] = max(self.depth(x, allowed) - ends, 0.0)
+            if allowed not in keys:
+                keys[allowed] = (self.depth(run[0], allowed), self.depth(run[-1], allowed))
+            first, last = keys[allowed]
+            out[i] = max(self.depth(x, allowed) - ((1.0 - s[i]) * first + s[i] * last), 0.0)
         return out
 
     def depth(self, q: np.ndarray, allowed) -> float:

@@ -38,6 +38,14 @@ SHALLOW = 5e-3
 #: A via's progress along the blend is kept this far from its ends (a bend at an end
 #: would be a jerk).
 EDGE = 0.05
+#: Bends tried when the first leaves the wrist with more than one speed peak, as
+#: ``(reach, timed)``: their bells over the blend's time rather than its progress (a via
+#: near an end is then reached over all the frames before it, not in the last few of
+#: them), reaching less or further than the first.
+ALTERNATIVES = ((1.0, True), (1.5, True))
+#: How much shorter an alternative bend's wrist path must be to replace the first: a
+#: clearly shorter way around, not noise.
+SHORTER = 0.95
 
 
 def bump(s: np.ndarray, at: float) -> np.ndarray:
@@ -91,9 +99,44 @@ class Detour:
             joints = sorted(self.schedule.track_joints[t])
             new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
             if new is not None and not self.rushed(q[a : b + 1], new, d, t, times):
-                q[a : b + 1, d] = new
+                q[a : b + 1, d] = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
                 self.bent.append((t, a, b))
         return q
+
+    def shortest(self, run: np.ndarray, times: np.ndarray, track: str, first: np.ndarray):
+        """The bend of arm ``track``'s blend ``run`` (n, nq) at ``times`` to keep: ``first``
+        (its dofs' values), or, when that leaves the wrist with more than one speed peak,
+        the :data:`ALTERNATIVES` bend whose wrist travels least if it is :data:`SHORTER`
+        and not rushed. Vias on different sides of an obstacle add up to a zig-zag: a
+        longer way around, with a speed peak per leg, that pacing cannot make one bell
+        without speeding it up. The shorter way, paced, is one slower bell."""
+        d = self.schedule.track_dofs[track]
+        joints = sorted(self.schedule.track_joints[track])
+        speed = self.wrist_speed(run, first, d, track, times)
+        if speed is None or mv.speed_peaks(speed) <= 1:
+            return first
+        best, length = first, SHORTER * speed.sum()
+        for reach, timed in ALTERNATIVES:
+            new = self.bent_run(run, times, d, joints, reach, timed)
+            if new is None or self.rushed(run, new, d, track, times):
+                continue
+            speed = self.wrist_speed(run, new, d, track, times)
+            if speed is not None and speed.sum() < length:
+                best, length = new, speed.sum()
+        return best
+
+    def wrist_speed(self, run, new, d, track: str, times) -> np.ndarray | None:
+        """(n,) the speed [m/s] of arm ``track``'s wrist over ``run`` (n, nq) with its dofs
+        ``d`` at ``new``; None if the signer has no such wrist or it stands still."""
+        site = self.schedule.smap.sites.get(f"WR_{track.removeprefix('arm_')}")
+        if site is None or len(times) < 2:
+            return None
+        sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
+        bent = run.copy()
+        bent[:, d] = new
+        pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in bent])
+        speed = mv.speed(pos, fps)
+        return speed if speed.max() > 0.0 else None
 
     def rushed(self, run: np.ndarray, new: np.ndarray, d, track: str, times) -> bool:
         """Whether the bent blend (``new``, the dofs ``d`` of arm ``track`` over the blend
@@ -112,15 +155,19 @@ class Detour:
 
         return peak(bent) > max(peak(run), FASTEST)
 
-    def bent_run(self, run, times, d, joints) -> np.ndarray | None:
+    def bent_run(
+        self, run, times, d, joints, reach: float = REACH, timed: bool = False
+    ) -> np.ndarray | None:
         """The dofs ``d`` of the arm (``joints``) over the blend ``run`` (n, nq) at
         ``times`` bent around the body, or None: the blend stays out of it, or no bend
-        found within :data:`BENDS` keeps every frame out."""
+        found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
+        via's offset; ``timed``: the bells over the frames' time, not the blend's
+        progress."""
         depth = self.depths(run, times)
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
         ad = self.adapter
-        s = progress(run[:, d])
+        s = np.linspace(0.0, 1.0, len(run)) if timed else progress(run[:, d])
         path, best, least = run.copy(), None, np.inf
         for k in range(BENDS):
             if k:
@@ -134,7 +181,7 @@ class Detour:
             via = ad.solve(soft, joints, path[m], times[m])
             if via.penetration > cn.PENETRATION_LIMIT:
                 break
-            path[:, d] += bump(s, s[m])[:, None] * (REACH * (via.qpos[d] - path[m, d]))
+            path[:, d] += bump(s, s[m])[:, None] * (reach * (via.qpos[d] - path[m, d]))
         else:
             depth = self.depths(path, times)
             if depth.max() < least:

@@ -1,7 +1,7 @@
 """Motion a signer makes: speeds and smoothness of every hand movement of the realized examples.
 
     python bench/motion.py [--label NAME] [--plot PATH] [--examples a,b] [--no-sentence]
-                           [--scores DIR]
+                           [--scores DIR] [--no-physics]
 
 Realizes every bundled example and the 10-sign sentence of ``bench/realize.py`` at 50 fps
 and measures, with :mod:`azee_mj.movement`, each wrist's movements (a movement runs between
@@ -13,6 +13,12 @@ rest) or ``sign``; the first three are timed by the realizer, the last by the sc
 rollout: the frames at which a constraint active in its block is outside its tolerance, the
 fastest joint [rad/s] (overall and where the realizer chose the timing) and the findings.
 ``--scores DIR`` adds every ``*.json`` score of a folder (e.g. ``bench/data/motion``).
+
+Each rollout is also simulated (the physics mode, ``azee_mj.physics``) and compared with
+its kinematic frames by ``bench/physics.py``'s ``compare``: the worst constraint error at the
+holds, SPARC and peak speed of each wrist movement, the torques against their limits, the
+deepest penetration outside the score's contacts and the simulation's real-time factor
+(CPU time, one core), kinematic / physics side by side. ``--no-physics`` skips it.
 
 Results go to ``bench/results/motion.json`` (or ``motion-NAME.json``), so that two versions
 of the realizer sit side by side: run it once per version and compare the files. ``--plot``
@@ -36,9 +42,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from machine import machine
+from physics import HEADER as PHYSICS_HEADER
+from physics import compare
+from physics import line as physics_line
 from realize import SIGNS, sentence
 
 from azee_mj import movement as mv
+from azee_mj.physics import PhysicsError
+from azee_mj.schedule import make_solver
 from azee_mj.score import load_score
 from azee_mj.timeline import realize
 
@@ -164,6 +175,20 @@ def table(recs: list[dict]) -> str:
     return "\n".join(rows)
 
 
+def physics_columns(score_dict: dict, solver) -> dict:
+    """The physics mode next to the kinematic one (``bench/physics.py``'s ``compare``), or
+    ``{"error": message}`` when the simulation diverges."""
+    try:
+        return compare(load_score(score_dict), solver)
+    except PhysicsError as e:
+        return {"error": str(e)}
+
+
+def physics_row(name: str, r: dict) -> str:
+    """One row of the side-by-side table (``bench/physics.py``'s columns)."""
+    return f"| {name} | {r['error']} |" if "error" in r else physics_line(name, r)
+
+
 def plot(path: Path, profiles: dict[str, dict]) -> None:
     import matplotlib
 
@@ -193,20 +218,27 @@ def main(argv=None) -> int:
     ap.add_argument("--examples", help="comma-separated example names (default: all)")
     ap.add_argument("--no-sentence", action="store_true", help="skip the 10-sign sentence")
     ap.add_argument("--scores", type=Path, help="also every *.json score of this folder")
+    ap.add_argument("--no-physics", action="store_true", help="skip the physics columns")
     a = ap.parse_args(argv)
     names = (
         a.examples.split(",")
         if a.examples
         else sorted(p.stem for p in (ROOT / "examples").glob("*.json"))
     )
-    recs, profiles = [], {}
+    recs, profiles, rows = [], {}, []
+    solver = None if a.no_physics else make_solver()
     for name, s in scores(names, not a.no_sentence, a.scores).items():
         rec, prof = measure(name, s)
+        if solver is not None:
+            rec["physics"] = physics_columns(s, solver)
+            rows.append(physics_row(name, rec["physics"]))
         recs.append(rec)
         profiles[name] = prof
     out = {"machine": machine(), "summary": summary(recs), "rollouts": recs}
     print(table(recs))
     print(json.dumps(out["summary"], indent=1))
+    if rows:
+        print("\nkinematic / physics:\n" + PHYSICS_HEADER + "\n" + "\n".join(rows))
     stem = f"motion-{a.label}" if a.label else "motion"
     (HERE / "results" / f"{stem}.json").write_text(json.dumps(out, indent=1) + "\n")
     if a.plot:

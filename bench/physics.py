@@ -240,7 +240,8 @@ def side_by_side(name: str, out: Path, size=(280, 260), fps: float = 25.0, solve
     frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
 
 
-def _line(name: str, r: dict) -> str:
+def line(name: str, r: dict) -> str:
+    """One row of the side-by-side table (:data:`HEADER`)."""
     h, mv, tq = r["holds"], r["movements"], r["torque"]
     sk = np.mean([m["sparc"][0] for m in mv]) if mv else float("nan")
     sd = np.mean([m["sparc"][1] for m in mv]) if mv else float("nan")
@@ -288,7 +289,7 @@ def main() -> None:
     print(HEADER)
     for name, score in scores.items():
         results[name] = compare(score, solver, args.repeat)
-        print(_line(name, results[name]), flush=True)
+        print(line(name, results[name]), flush=True)
     print("\nwhere the kinematic frames need more than the torque limits (peak >= 1.5):")
     for name, r in results.items():
         for w in r["torque"]["kinematic_over_limit"]:

@@ -329,6 +329,22 @@ HELD_OUT = (
         "@TE(s)",
         (orient("!palm(s)", "nrm", "along", "fwd", 20.0),),
     ),
+    # -- the third round of issue 26: written and measured before its changes, of the kinds
+    # it worked on (the throat, the back of the head and the nape, two hands on the chest,
+    # the spread hand's thumb)
+    ("middle-pad-throat", "face", FLAT, None, "@M_PAD(s)", "@NK"),
+    ("palm-back-of-head", "face", FLAT, None, "@PA(s)", "@BEB"),
+    ("index-tip-nape", "body", INDEX, None, "@I_TIP(s)", "@NAPE"),
+    (
+        "two-index-tips-chest",
+        "two-hands",
+        INDEX,
+        INDEX,
+        "@I_TIP(s)",
+        "@ST(s)",
+        (place("@I_TIP(w)", "@ST(w)"),),
+    ),
+    ("spread-middle-on-thumb", "fingers", {"fingers_spread": 1.0}, None, "@M_TIP(s)", "@T_TIP(s)"),
 )
 #: Contacts no arm makes face to face within human joint ranges, run beside the suite for
 #: the realizer's reason and not counted in it: the back of the fist on the front of the

@@ -485,7 +485,9 @@ def _bundled_morphs() -> dict[str, tuple]:
     # hand) has a straight thumb. Alone (or with `flat`) its negative changes clip at the
     # ranges: a straight thumb, its tip bent back 20 degrees.
     m["thumb_extended"] = ({j: THUMB_UP[j] - FIST_THUMB[j] for j in FIST_THUMB}, True)
-    # The thumb spreads too: it lies along the index finger, which spreads toward it.
+    # The thumb spreads too: it lies along the index finger, which spreads toward it, in
+    # the palm's plane (its base unflexed: from home's 0.05 rad of flexion, abducted 0.24 to
+    # 0.32 rad, its proximal phalanx sank up to 0.19 mm into the palm's edge).
     m["fingers_spread"] = (
         {
             "index_{X}_1_spread": 0.3,
@@ -493,6 +495,7 @@ def _bundled_morphs() -> dict[str, tuple]:
             "ring_{X}_1_spread": -0.2,
             "little_{X}_1_spread": -0.4,
             "thumb_{X}_1_abd": 0.3,
+            "thumb_{X}_1_flex": 0.0,
         },
         True,
     )

@@ -584,3 +584,19 @@ def test_hand_and_face_morphs_are_free_of_penetration(model, data, morph):
         q[model.joint(joint).qposadr[0]] = v
     _forward(model, data, q)
     assert _penetrations(model, data) == []
+
+
+@pytest.mark.parametrize("morph", ["fingers_spread", "flat"])
+def test_open_hand_morphs_from_home_at_any_weight_are_free_of_penetration(model, data, morph):
+    """A morph's targets at weights 0.1 to 1 from ``home``, the posture a key starts from
+    (the joints the morph does not name stay there): the body stays whole. The spread
+    hand's thumb, abducted 0.24 to 0.32 rad from home's 0.05 rad of base flexion, sank its
+    proximal phalanx up to 0.19 mm into the palm's edge; it now spreads in the palm plane."""
+    for w in np.linspace(0.1, 1.0, 10):
+        q = _home(model)
+        for joint, v in DEFAULT_MAP.morphs[morph].joint_changes("R").items():
+            jid = model.joint(joint).id
+            adr = model.jnt_qposadr[jid]
+            q[adr] = np.clip(model.qpos0[adr] + w * v, *model.jnt_range[jid])
+        _forward(model, data, q)
+        assert _penetrations(model, data) == [], f"weight {w:.1f}"

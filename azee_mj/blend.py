@@ -125,20 +125,24 @@ def blend_time(change: np.ndarray, speed: float) -> float:
 def holds_of(keys: list[Key], dofs: np.ndarray) -> list[Hold]:
     """The holds of one track (joints ``dofs``): its keys, consecutive ones with the same
     posture merged. A return to neutral is due by the end of its relax keys: a key merged
-    after those needs the posture from its start."""
+    after those needs the posture from its start. A hand shape held on into a key that
+    also places or turns the hand takes that key's posture (solved with the contact: the
+    two differ by less than ``SAME_POSTURE``, the shape's tolerance holds, and the
+    contact is met as solved, not a milliradian off, where fingers of two hands touch)."""
     holds: list[Hold] = []
     for k in keys:
         qk = k.q[dofs]
         last = holds[-1] if holds else None
+        shape_only = all(isinstance(c, cn.JointTarget) for c in k.cons)
         if (
             last is not None
             and abs(last.end - k.start) < EPS
             and np.allclose(last.q, qk, atol=SAME_POSTURE)
         ):
             due = k.end if last.end == last.due and k.relax else last.due
-            holds[-1] = dataclasses.replace(last, end=k.end, due=due)
+            q = qk if last.shape_only and not shape_only and k.cons else last.q
+            holds[-1] = dataclasses.replace(last, end=k.end, due=due, q=q)
         else:
-            shape_only = all(isinstance(c, cn.JointTarget) for c in k.cons)
             holds.append(Hold(k.start, k.end, qk, k.relax, shape_only, k.end))
     return holds
 

@@ -22,6 +22,7 @@ from azee_mj.blend import (
     next_still,
     track_curve,
 )
+from azee_mj.kinematics import SitePos
 
 DOFS = np.array([0, 1])
 
@@ -74,6 +75,22 @@ def test_holds_merge_consecutive_keys_with_the_same_posture():
     assert holds[0].shape_only and holds[1].shape_only  # no constraint is a shape too
     np.testing.assert_array_equal(holds[0].q, [0.0, 1.0])  # the first key's posture
     assert [h.due for h in holds] == [0.5, 1.2, 1.5]
+
+
+def test_a_hand_shape_held_into_a_contact_takes_the_contact_s_posture():
+    """The shape's key and the contact's key differ by less than SAME_POSTURE: one hold,
+    with the posture solved with the contact (where two hands' fingers touch, the
+    shape's posture a milliradian off put them 0.14 mm into each other)."""
+    shape = cn.JointTarget("a", 0.1, 0.02, "morph:a")
+    touch = cn.Place("PA_R", SitePos("ST_R"), 0.001, "K")
+    keys = [
+        _key(0.0, 0.4, [0.0, 1.0], (shape,)),
+        _key(0.4, 0.8, [0.0, 1.0 + 1e-3], (touch, shape)),
+        _key(0.8, 1.0, [0.0, 1.0 + 2e-3], (shape,)),  # a shape again: the posture stays
+    ]
+    (hold,) = holds_of(keys, DOFS)
+    assert (hold.start, hold.end, hold.shape_only) == (0.0, 1.0, True)
+    np.testing.assert_array_equal(hold.q, [0.0, 1.0 + 1e-3])
 
 
 def test_a_return_to_neutral_is_due_when_its_relax_keys_end():

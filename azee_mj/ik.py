@@ -254,10 +254,18 @@ class Solver:
         with ``converged=False``. Fingertips that may touch with any point of their round
         end are tried head-on first (:func:`head_on_first`).
         """
-        result = head_on_first(self._solve_once, problem, q0)
+        result = head_on_first(self._solve_once, problem, q0, self.preference_cost)
         if self.on_solve is not None:
             self.on_solve(problem, result)
         return result
+
+    def preference_cost(self, problem: IKProblem, q: np.ndarray) -> float:
+        """The sum of squares of ``problem``'s preference rows (each 1 at its tolerance) on
+        posture ``q`` (nq,)."""
+        if not problem.preferences:
+            return 0.0
+        k = self.at(q, jacobians=True)
+        return float(sum(np.sum(c.rows(k)[0] ** 2) for c in problem.preferences))
 
     def _solve_once(self, problem: IKProblem, q0) -> tuple[IKResult, tuple[int, float]]:
         """:meth:`solve` as posed, and the kept attempt's rank (see :class:`Attempt`)."""
@@ -379,13 +387,16 @@ class Solver:
         return plan.lm(q, self.dof_weight, self.max_iter, history, posture, stop, early)
 
 
-def head_on_first(solve_once, problem: IKProblem, q0) -> IKResult:
+def head_on_first(solve_once, problem: IKProblem, q0, preference_cost=None) -> IKResult:
     """Solve ``problem`` with ``solve_once`` (problem, start -> (result, rank)); when it
     places a round end (:func:`~azee_mj.contact.head_on`) and may restart, also with the
     ends meeting head-on only, keeping the better: a meet before a miss, then the more
     natural (a fingertip that can touch head-on, the temple, the brow, comes at it as
     before and does not take another arm branch for the freedom its roundness gives),
-    and of two misses the rolled one (its residual is the contact's own)."""
+    and of two misses the rolled one (its residual is the contact's own) unless it breaks
+    the problem's preferences (``preference_cost(problem, q)``, a unit a row at its
+    tolerance) more than twice as much as the head-on one and by over a unit: a miss
+    keeps the posture natural."""
     plain = head_on(problem.constraints)
     if plain is None:
         return solve_once(problem, q0)[0]
@@ -395,6 +406,10 @@ def head_on_first(solve_once, problem: IKProblem, q0) -> IKResult:
     a, rank_a = solve_once(dataclasses.replace(problem, constraints=plain), q0)
     b, rank_b = solve_once(rolled, q0)
     kept = a if rank_a[0] == 0 and (rank_b[0] != 0 or rank_a[1] <= rank_b[1]) else b
+    if rank_a[0] and rank_b[0] and preference_cost is not None:
+        pa, pb = preference_cost(problem, a.qpos), preference_cost(problem, b.qpos)
+        if pb > max(2.0 * pa, pa + 1.0):
+            kept = a  # of two misses, the one that keeps the posture natural
     return dataclasses.replace(kept, iterations=a.iterations + b.iterations, time=a.time + b.time)
 
 

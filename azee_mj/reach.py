@@ -95,6 +95,7 @@ def arm_seed(
     target: np.ndarray,
     facing: tuple[np.ndarray, float] | None = None,
     swivel: float | None = None,
+    lying: np.ndarray | None = None,
 ) -> dict[str, float] | None:
     """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
     posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel
@@ -105,6 +106,8 @@ def arm_seed(
     ``facing`` (the target surface's outward unit normal, world, and a tolerance [rad]) the
     hand point is a fingertip that must meet the surface nearly head-on: the hand comes in
     along the normal, turned toward that frontal approach as far as the tolerance allows.
+    With ``lying`` (the surface's outward unit normal, world) the hand point is a pad: the
+    hand comes in along the surface (the frontal approach less its normal part).
     Returns None when the joint frames are not the ones this solution assumes (another
     signer).
     """
@@ -132,6 +135,8 @@ def arm_seed(
     reach_dir = (target - source) / max(float(np.linalg.norm(target - source)), 1e-9)
     if facing is not None:
         reach_dir = -_turn_toward(np.asarray(facing[0], float), -reach_dir, facing[1])
+    elif lying is not None:
+        reach_dir = _along(reach_dir, lying)
     w = target - float(np.linalg.norm(np.asarray(hand_point, float) - w0)) * reach_dir
     # The arm's rest frame: the parent (clavicle) frame of the shoulder joints.
     x = Rp.T @ (w - s)
@@ -164,6 +169,13 @@ def arm_seed(
     return {arm.flex: flex, arm.abd: abd, arm.rot: rot, arm.elbow: e}
 
 
+def _along(v: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Unit ``v`` with its part along the unit ``normal`` taken out (``v`` if along it)."""
+    t = v - (v @ normal) * normal
+    n = float(np.linalg.norm(t))
+    return t / n if n > 1e-6 else v
+
+
 def _turn_toward(a: np.ndarray, b: np.ndarray, limit: float) -> np.ndarray:
     """Unit vector ``a`` turned toward unit ``b`` by their angle, at most ``limit`` [rad]."""
     ang = float(np.arccos(np.clip(a @ b, -1.0, 1.0)))
@@ -188,9 +200,10 @@ def _goals(solver: ik.Solver, cons, arm_of, meet: str | None):
     """The reach goals of :func:`arm_seeds` on the posture in the solver's data: (reach:
     each free arm's first placement, meeting: both hands at ``meet`` when a placement joins
     them, head_on: the arms bringing a fingertip in face to face, joined: (arm, other arm,
-    the joining placement, the meeting centre) or None)."""
+    the joining placement, the meeting centre) or None, lying: the arms bringing a pad
+    onto a surface face to face, see :func:`_lying`)."""
     d = solver.data
-    reach, meeting, head_on, used, joined = [], [], [], set(), None
+    reach, meeting, head_on, lying, used, joined = [], [], [], [], set(), None
     for c in cons:
         if not isinstance(c, cn.Place) or (arm := arm_of(c.site)) is None or arm in used:
             continue
@@ -199,6 +212,8 @@ def _goals(solver: ik.Solver, cons, arm_of, meet: str | None):
         reach.append((arm, c.site, target))
         if (f := _head_on(solver, arm, c, cons)) is not None:
             head_on.append((arm, c.site, target, f))
+        elif (p := _lying(solver, arm, c, cons)) is not None:
+            lying.append((arm, c.site, target, *p))
         other = arm_of(c.target.site) if isinstance(c.target, SitePos) else None
         if other is not None and other is not arm and meet is not None and not meeting:
             # each hand a little to its own side, so that they start apart and close in
@@ -209,7 +224,7 @@ def _goals(solver: ik.Solver, cons, arm_of, meet: str | None):
                 (other, c.target.site, centre + other.out * gap),
             ]
             joined = (arm, other, c, centre)
-    return reach, meeting, head_on, joined
+    return reach, meeting, head_on, joined, lying
 
 
 def arm_seeds(
@@ -230,7 +245,8 @@ def arm_seeds(
     (:func:`_turned`), and for a fingertip on the other hand that hand there palm down with the
     fingertip reaching it head-on; and when a fingertip must
     meet its target face to face (an ``Orient`` ``OPP`` of the two bodies' normals among
-    ``cons``), the arm bringing it in head-on (see :func:`arm_seed`); when a hand touches
+    ``cons``), the arm bringing it in head-on (see :func:`arm_seed`), and a pad the finger
+    lying across the surface (:func:`_lying_seeds`); when a hand touches
     the other arm, that arm with its palm in the signing space first, then the hand
     reaching it. ``hand_of(site)`` is the arm whose hand carries a model site, or None;
     ``carried_by(site)`` (arm, its palm site, where that palm rests: an expression) for a
@@ -260,11 +276,12 @@ def arm_seeds(
             solver.at(q0, jacobians=True)
         return q
 
-    reach, meeting, head_on, joined = _goals(solver, cons, arm_of, meet)
+    reach, meeting, head_on, joined, lying = _goals(solver, cons, arm_of, meet)
     aimed = {h[0] for h in head_on}  # the arms that bring a fingertip in head-on
     if head_on:
         head_on += [g for g in reach if g[0] not in aimed]
     seeds = [seeded(g) for g in (reach, meeting, head_on) if g]
+    seeds += _lying_seeds(solver, seeds[0], lying, q0) if lying else []
     if meeting:
         # the placed hand above the other, both palms down
         (arm, site, p), (other, osite, po) = meeting
@@ -468,6 +485,34 @@ def _head_on(solver: ik.Solver, arm: Arm, place: cn.Place, cons):
     tbody = solver.body_id(o.vector.body)
     normal = d.xmat[tbody].reshape(3, 3) @ np.asarray(o.vector.local, float)
     return normal / np.linalg.norm(normal), float(o.tol)
+
+
+def _lying_seeds(solver: ik.Solver, q1: np.ndarray, lying, q0: np.ndarray) -> list[np.ndarray]:
+    """From start ``q1``, each arm of ``lying`` (arm, pad site, target, the surface's
+    outward normal, the face-to-face rule) bringing its pad in along the surface, the
+    finger lying across it, the hand aimed to face it. Leaves ``data`` on ``q0``."""
+    m, d, out = solver.model, solver.data, []
+    for arm, site, target, normal, rule in lying:
+        sol = arm_seed(m, d, arm, d.site_xpos[solver.site_id(site)], target, lying=normal)
+        if sol:
+            q = q1.copy()
+            for j, v in sol.items():
+                q[m.jnt_qposadr[solver.joint_id(j)]] = v
+            out.append(_aim_hand(solver, q, arm.wrist, site, target, rule))
+            solver.at(q0, jacobians=True)
+    return out
+
+
+def _lying(solver: ik.Solver, arm: Arm, place: cn.Place, cons):
+    """(the target surface's outward normal, world; the face-to-face rule) when ``place``
+    brings a pad of ``arm``'s fingers (a site on a digit that is not its end) face to face
+    with a surface, else None."""
+    m, d = solver.model, solver.data
+    o = _facing_of(solver, place, cons)
+    if o is None or int(m.site_bodyid[solver.site_id(place.site)]) == solver.body_id(arm.hand):
+        return None
+    normal = d.xmat[solver.body_id(o.vector.body)].reshape(3, 3) @ np.asarray(o.vector.local)
+    return normal / np.linalg.norm(normal), o
 
 
 #: Elbow swivels tried, in this order, when a solve fails from its warm start [rad, from

@@ -242,6 +242,27 @@ def test_two_bone_seed_puts_the_wrist_on_target_with_the_elbow_below(solver):
             assert below[2] < 0.0  # the elbow hangs below the shoulder-wrist line
 
 
+def test_a_pad_seed_brings_the_hand_in_along_the_surface(solver):
+    """A pad lies on the surface: the wrist stops short of the target by the pad's
+    distance from it, along the surface (no part along its normal), and the two-bone
+    solution puts it there."""
+    m, d = solver.model, mujoco.MjData(solver.model)
+    for arm in reach.arms_of(DEFAULT_MAP):
+        _fk(m, d, solver.natural)
+        shoulder = d.xpos[solver.body_id(arm.upper)].copy()
+        wrist = d.xpos[solver.body_id(arm.hand)].copy()
+        pad = d.site_xpos[solver.site_id(f"I_PAD_{'R' if arm.out < 0 else 'L'}")].copy()
+        target = shoulder + np.array([0.2, -0.1 * arm.out, 0.05])
+        normal = np.array([0.8, 0.0, 0.6])  # the surface faces forward and up
+        q = solver.natural.copy()
+        for j, v in reach.arm_seed(m, d, arm, pad, target, lying=normal).items():
+            q[solver.joint_id(j)] = v
+        _fk(m, d, q)
+        w = d.xpos[solver.body_id(arm.hand)]
+        assert (target - w) @ normal == pytest.approx(0.0, abs=1e-9)
+        assert np.linalg.norm(target - w) == pytest.approx(np.linalg.norm(pad - wrist))
+
+
 def test_two_bone_seed_turns_the_elbow_by_its_swivel(solver):
     m, d = solver.model, mujoco.MjData(solver.model)
     arm = reach.arms_of(DEFAULT_MAP)[0]

@@ -219,6 +219,12 @@ def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) 
     """Deepest penetration [m] (>= 0) between colliding geoms of posture ``d.qpos``, ignoring
     body pairs in ``allowed``. Runs ``mj_kinematics`` and ``mj_collision``."""
     mujoco.mj_kinematics(m, d)
+    return contact_depth(m, d, allowed)
+
+
+def contact_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> float:
+    """:func:`penetration_depth` on a posture whose kinematics ``d`` holds already: runs
+    ``mj_collision`` only."""
     mujoco.mj_collision(m, d)
     n = d.ncon
     if not n:

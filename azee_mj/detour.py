@@ -214,5 +214,4 @@ class Detour:
 
     def depth(self, q: np.ndarray, allowed) -> float:
         """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``."""
-        k = self.adapter.at(q)
-        return cn.penetration_depth(k.m, k.d, allowed)
+        return self.adapter.solver.depth(q, allowed)

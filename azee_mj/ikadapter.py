@@ -100,9 +100,7 @@ class IKAdapter:
         collision row reaches 1; a solve converges within the looser
         ``PENETRATION_LIMIT``), but for the body pairs the contacts of time ``t`` [s]
         bring together."""
-        k = self.solver.at(q)
-        allowed = self.schedule.allowed_at(t)
-        return cn.penetration_depth(k.m, k.d, allowed) > cn.COLLISION_TOL
+        return self.solver.depth(q, self.schedule.allowed_at(t)) > cn.COLLISION_TOL
 
     def dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names (in their order; looked up once per sequence)."""

@@ -241,10 +241,7 @@ class Pacer:
         ad, sched = self.adapter, self.schedule
 
         def depth(q, t, allowed=None):
-            k = ad.at(q)
-            return cn.penetration_depth(
-                k.m, k.d, sched.allowed_at(t) if allowed is None else allowed
-            )
+            return ad.solver.depth(q, sched.allowed_at(t) if allowed is None else allowed)
 
         pts = np.empty((len(path), len(sids), 3))
         bad = []

@@ -224,5 +224,5 @@ class Detour:
         frames, and the frames near its ends a bend leaves as they were."""
         key = (q.tobytes(), allowed)
         if key not in self.known:
-            self.known[key] = self.adapter.solver.depth(q, allowed)
+            self.known[key] = self.adapter.depth(q, allowed)
         return self.known[key]

@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from azee_mj.constraints import PENETRATION_LIMIT, Constraint, contact_depth
+from azee_mj.constraints import PENETRATION_LIMIT, Constraint
 from azee_mj.contact import head_on, widened
 from azee_mj.kinematics import Kinematics, Names
 from azee_mj.natural import Effort, Naturalness
@@ -206,14 +206,6 @@ class Solver:
         if jacobians:
             mujoco.mj_comPos(self.model, self.data)
         return self.kinematics()
-
-    def depth(self, q: np.ndarray, allowed=frozenset()) -> float:
-        """Deepest penetration [m] (>= 0) of posture ``q`` (nq,) but for the body pairs
-        ``allowed`` (:func:`~azee_mj.constraints.penetration_depth`), its kinematics run
-        once; ``self.data`` holds them (and the contacts) afterwards, as after :meth:`at`."""
-        self.data.qpos[:] = q
-        mujoco.mj_kinematics(self.model, self.data)
-        return contact_depth(self.model, self.data, allowed)
 
     # -- problem set-up ---------------------------------------------------------------
     def bodies_of(self, c: Constraint) -> set[int]:

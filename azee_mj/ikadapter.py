@@ -100,7 +100,14 @@ class IKAdapter:
         collision row reaches 1; a solve converges within the looser
         ``PENETRATION_LIMIT``), but for the body pairs the contacts of time ``t`` [s]
         bring together."""
-        return self.solver.depth(q, self.schedule.allowed_at(t)) > cn.COLLISION_TOL
+        return self.depth(q, self.schedule.allowed_at(t)) > cn.COLLISION_TOL
+
+    def depth(self, q: np.ndarray, allowed=frozenset()) -> float:
+        """Deepest penetration [m] (>= 0) of posture ``q`` (nq,) but for the body pairs
+        ``allowed`` (:func:`~azee_mj.constraints.penetration_depth`, its kinematics run
+        once); the solver's data holds that posture's kinematics afterwards."""
+        k = self.solver.at(q)
+        return cn.contact_depth(k.m, k.d, allowed)
 
     def dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names (in their order; looked up once per sequence)."""

@@ -241,7 +241,7 @@ class Pacer:
         ad, sched = self.adapter, self.schedule
 
         def depth(q, t, allowed=None):
-            return ad.solver.depth(q, sched.allowed_at(t) if allowed is None else allowed)
+            return ad.depth(q, sched.allowed_at(t) if allowed is None else allowed)
 
         pts = np.empty((len(path), len(sids), 3))
         bad = []
@@ -482,12 +482,13 @@ class Motion:
                 out[f] = bad
         return out
 
-    def hold_constraints(self, q, times, keys, skip=()) -> np.ndarray:
+    def hold_constraints(self, q, times, keys, skip=(), misses=None) -> np.ndarray:
         """Every constraint held at every frame of its block: the frames of ``q`` (T, nq)
         that leave one (a neighbouring trill, a per-frame solve's box) are solved again
         with it (in place; ``skip``: paths of blocks whose own frames are not held, their
-        trill shakes them on purpose). :attr:`resolved` counts them."""
-        misses = self.misses(q, times, skip)
+        trill shakes them on purpose; ``misses``: :meth:`misses` of ``q`` and ``skip`` when
+        measured already). :attr:`resolved` counts them."""
+        misses = self.misses(q, times, skip) if misses is None else misses
         self.resolved = len(misses)
         if misses and self.mode is Mode.MULTITRACK:
             FrameSolver(self.adapter, self.fps).hold_frames(q, times, keys, misses)

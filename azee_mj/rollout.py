@@ -24,6 +24,7 @@ from azee_mj.timing import frame_range
 __all__ = [
     "ConstraintTrace",
     "Finding",
+    "ResidualTable",
     "Rollout",
     "SolveStats",
     "constraint_traces",
@@ -211,35 +212,68 @@ def constraint_traces(
     frames ``q`` (T, nq) inside its block; ``reasons`` (constraint label -> why its key
     posture misses it) is said on the traces. The score's time 0 is frame ``lead_frames``
     (the traces' times are on the rollout's clock); ``blocks``: only these block paths."""
-    reasons = reasons or {}
-    comp, items = schedule.comp, []
-    shift = lead_frames / fps
-    for b in schedule.blocks:
-        if b.kind is not sc.BlockKind.CSTR or (blocks is not None and b.path not in blocks):
-            continue
-        span = frame_range(b.start, b.end, fps, len(times) - lead_frames)
-        frames = range(span.start + lead_frames, span.stop + lead_frames)
-        for c in b.constraints:
-            ic = comp.constraint(c, f"{b.path}#{c.index}")
-            if ic is not None:
-                items.append((b, c, ic, frames))
-    values = residuals(schedule.solver, q, [(ic, span) for _, _, ic, span in items])
-    return tuple(
-        ConstraintTrace(
-            b.path,
-            c.index,
-            type(c).__name__.lower(),
-            ic.tol,
-            "m" if isinstance(ic, cn.Place) else "rad",
-            b.start + shift,
-            b.end + shift,
-            span.start,
-            vals,
-            len(times),
-            reasons.get(ic.label, ""),
+    return ResidualTable(schedule, q[: len(times)], fps, lead_frames, blocks).traces(reasons)
+
+
+class ResidualTable:
+    """The residual of every place / orient / look constraint of ``schedule``'s blocks (or
+    of the block paths ``blocks`` only) at each frame of ``q`` (T, nq) inside its block, the
+    score's time 0 at frame ``lead_frames``; kept with the constraints, so that the frames
+    the realizer checks (:meth:`misses`) and the traces it reports (:meth:`traces`) are one
+    measurement, taken again only at the frames that change (:meth:`update`)."""
+
+    def __init__(self, schedule: Schedule, q: np.ndarray, fps: float, lead_frames=0, blocks=None):
+        self.schedule, self.frames, self.shift = schedule, len(q), lead_frames / fps
+        comp, self.items = schedule.comp, []
+        for b in schedule.blocks:
+            if b.kind is not sc.BlockKind.CSTR or (blocks is not None and b.path not in blocks):
+                continue
+            span = frame_range(b.start, b.end, fps, len(q) - lead_frames)
+            frames = range(span.start + lead_frames, span.stop + lead_frames)
+            for c in b.constraints:
+                ic = comp.constraint(c, f"{b.path}#{c.index}")
+                if ic is not None:
+                    self.items.append((b, c, ic, frames))
+        self.values = residuals(schedule.solver, q, [(ic, f) for _, _, ic, f in self.items])
+
+    def misses(self) -> dict[int, list]:
+        """Frame -> the (constraint, tracks it drives) outside their tolerance at that frame,
+        in block order, then constraint order; frames ascending."""
+        out: dict[int, list] = {}
+        for (_, c, ic, span), vals in zip(self.items, self.values):
+            for f in (span.start + np.flatnonzero(~(vals <= ic.tol))).tolist():
+                out.setdefault(f, []).append((ic, self.schedule.comp.tracks_of(c)))
+        return dict(sorted(out.items()))
+
+    def update(self, q: np.ndarray, frames) -> None:
+        """The residuals at ``frames`` of ``q`` (T, nq) measured again (frames that changed)."""
+        for f in sorted(frames):
+            k = None
+            for (_, _, ic, span), vals in zip(self.items, self.values):
+                if span.start <= f < span.stop:
+                    k = self.schedule.solver.at(q[f]) if k is None else k
+                    vals[f - span.start] = ic.residual(k)
+
+    def traces(self, reasons=None) -> tuple[ConstraintTrace, ...]:
+        """The traces of the residuals; ``reasons`` (constraint label -> why its key posture
+        misses it) is said on them."""
+        reasons = reasons or {}
+        return tuple(
+            ConstraintTrace(
+                b.path,
+                c.index,
+                type(c).__name__.lower(),
+                ic.tol,
+                "m" if isinstance(ic, cn.Place) else "rad",
+                b.start + self.shift,
+                b.end + self.shift,
+                span.start,
+                vals,
+                self.frames,
+                reasons.get(ic.label, ""),
+            )
+            for (b, c, ic, span), vals in zip(self.items, self.values)
         )
-        for (b, c, ic, span), vals in zip(items, values)
-    )
 
 
 def residuals(solver: ik.Solver, q: np.ndarray, items) -> list[np.ndarray]:

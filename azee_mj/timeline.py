@@ -58,6 +58,7 @@ from azee_mj.preferences import (
 from azee_mj.rollout import (
     ConstraintTrace,
     Finding,
+    ResidualTable,
     Rollout,
     SolveStats,
     constraint_traces,
@@ -154,11 +155,7 @@ def realize(
     # A trill moves its block's posture on purpose: its residuals are those before it.
     shaken = constraint_traces(own, flip(q) if flip else q, times, fps, reasons, lead, trilled)
     q = motion.trills(q, times)
-    q = motion.hold_constraints(q, times, keys, trilled)
-    if flip:
-        q = flip(q)
-    rest_of = {b.path for b in own.blocks} - trilled
-    traces = constraint_traces(own, q, times, fps, reasons, lead, rest_of)
+    q, traces = held(motion, own, q, keys, flip, reasons, trilled)
     traces = tuple(sorted(shaken + traces, key=order_of(own)))
     site_pos = site_positions(solver, smap, q)
     tick(1.0)
@@ -170,6 +167,25 @@ def realize(
     return Rollout(
         fps, mode, rt, q, tuple(smap.sites), site_pos, intervals, traces, stats, shift, found
     )
+
+
+def held(motion: Motion, own: Schedule, q, keys, flip, reasons, trilled):
+    """The frames ``q`` (T, nq) with every constraint held at every frame of its block
+    (:meth:`~azee_mj.motion.Motion.hold_constraints`; not those of the ``trilled`` blocks),
+    mirrored by ``flip`` for a left-handed score, and the residual traces of ``own`` (the
+    score's schedule) on them. Right-handed, the frames are checked and traced by one
+    measurement (:class:`~azee_mj.rollout.ResidualTable`), taken again only at the frames
+    the check solves again; left-handed, the traces measure the mirrored frames."""
+    times, fps, lead = motion.times(), motion.fps, motion.lead_frames
+    rest_of = {b.path for b in own.blocks} - trilled
+    if flip:
+        q = flip(motion.hold_constraints(q, times, keys, trilled))
+        return q, constraint_traces(own, q, times, fps, reasons, lead, rest_of)
+    table = ResidualTable(own, q, fps, lead, rest_of)
+    misses = table.misses()
+    q = motion.hold_constraints(q, times, keys, trilled, misses)
+    table.update(q, misses)
+    return q, table.traces(reasons)
 
 
 def at_tempo(score: sc.Score, tempo: float, hold: float) -> sc.Score:

@@ -81,8 +81,6 @@ class Detour:
         self.adapter, self.schedule = adapter, adapter.schedule
         #: Blends bent, as ``(track, first frame, last frame)``.
         self.bent: list[tuple[str, int, int]] = []
-        #: The depths [m] of the postures of the blend being bent, by posture and allowed set.
-        self.known: dict[tuple[bytes, frozenset], float] = {}
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
@@ -165,7 +163,6 @@ class Detour:
         found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
         via's offset; ``timed``: the bells over the frames' time, not the blend's
         progress."""
-        self.known = {}
         depth = self.depths(run, times)
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
@@ -219,10 +216,7 @@ class Detour:
         return out
 
     def depth(self, q: np.ndarray, allowed) -> float:
-        """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``;
-        worked out once per posture and set in a blend (:attr:`known`): its keys are its end
-        frames, and the frames near its ends a bend leaves as they were."""
-        key = (q.tobytes(), allowed)
-        if key not in self.known:
-            self.known[key] = self.adapter.depth(q, allowed)
-        return self.known[key]
+        """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``
+        (worked out once per posture by the adapter: a blend's keys are its end frames, and a
+        bend leaves the frames near its ends as they were)."""
+        return self.adapter.depth(q, allowed)

@@ -25,6 +25,8 @@ from azee_mj.schedule import Schedule
 #: How far a joint held near a posture by :meth:`IKAdapter.soft_targets` may go [rad]
 #: before it counts as much as a constraint at its tolerance.
 SOFT_TARGET_TOL = 0.3
+#: Postures whose penetration depth :meth:`IKAdapter.depth` keeps (about 1 kB each).
+DEPTHS_KEPT = 4096
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,6 +73,7 @@ class IKAdapter:
         self.solver = schedule.solver
         self.results = SolveLog()
         self._dofs: dict[tuple[str, ...], np.ndarray] = {}
+        self._depths: dict[tuple[bytes, frozenset], float] = {}  # see depth()
 
     def problem(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKProblem:
         """The problem of constraints ``cons`` moving joints ``free`` from ``q0`` (nq,)
@@ -105,9 +108,17 @@ class IKAdapter:
     def depth(self, q: np.ndarray, allowed=frozenset()) -> float:
         """Deepest penetration [m] (>= 0) of posture ``q`` (nq,) but for the body pairs
         ``allowed`` (:func:`~azee_mj.constraints.penetration_depth`, its kinematics run
-        once); the solver's data holds that posture's kinematics afterwards."""
+        once); the solver's data holds that posture's kinematics afterwards. Each depth is
+        kept (:data:`DEPTHS_KEPT` at most): a detour measures the same frames as it bends a
+        blend, and the frame solver and the pacing measure many of them again."""
         k = self.solver.at(q)
-        return cn.contact_depth(k.m, k.d, allowed)
+        key = (q.tobytes(), allowed)
+        out = self._depths.get(key)
+        if out is None:
+            if len(self._depths) >= DEPTHS_KEPT:
+                self._depths.clear()
+            out = self._depths[key] = cn.contact_depth(k.m, k.d, allowed)
+        return out
 
     def dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names (in their order; looked up once per sequence)."""

@@ -84,9 +84,10 @@ def speed_findings(
     wrists = [site for site in WRISTS if site in site_names]
     tracks = _columns(site_pos, [site_names.index(site) for site in wrists])
     # one speed series at a time: all of them at once are as large as the postures
+    fast = turning_fast(qpos, [adr for _, adr in joints.values()], JOINT_LIMIT / fps)
     checks = itertools.chain(
         ((site, WRISTS[site], tracks[:, k], "m/s") for k, site in enumerate(wrists)),
-        ((j, tr, qpos[:, adr], "rad/s") for j, (tr, adr) in joints.items()),
+        ((j, tr, qpos[:, adr], "rad/s") for (j, (tr, adr)), f in zip(joints.items(), fast) if f),
     )
     for what, track, x, unit in checks:
         v = frame_speeds(x, fps)
@@ -109,6 +110,18 @@ def speed_findings(
                 )
             )
     return sorted(out, key=lambda x: (x.start, x.what))
+
+
+def turning_fast(qpos: np.ndarray, adrs: list, step: float, block: int = 4096) -> np.ndarray:
+    """(len(adrs),) whether the joint at each qpos address of ``adrs`` changes by more than
+    ``step`` (less a relative 1e-9: a screen, never missing a joint whose speed is over the
+    limit by rounding) between some two frames of ``qpos`` (T, nq); a block of frames at a
+    time (the columns of every frame at once would be as large as the postures)."""
+    out = np.zeros(len(adrs), bool)
+    for a in range(0, max(len(qpos) - 1, 0), block):
+        part = qpos[a : a + block + 1, adrs]
+        out |= (np.abs(np.diff(part, axis=0)) > step * (1.0 - 1e-9)).any(axis=0)
+    return out
 
 
 def leaving(traces) -> np.ndarray:

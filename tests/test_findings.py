@@ -13,6 +13,7 @@ from azee_mj.findings import (
     leaving,
     runs,
     speed_findings,
+    turning_fast,
 )
 from azee_mj.rollout import ConstraintTrace
 from azee_mj.schedule import TrackInterval
@@ -27,6 +28,22 @@ def test_runs_are_the_consecutive_true_frames():
 def test_frame_speed_is_the_larger_step_around_a_frame():
     x = np.array([[0.0, 0, 0], [0.1, 0, 0], [0.1, 0, 0], [0.1, 0.3, 0.4]])
     np.testing.assert_allclose(frame_speeds(x, 10.0), [1.0, 1.0, 5.0, 5.0])
+
+
+def test_the_screen_keeps_every_joint_whose_speed_passes_the_limit():
+    """Joints screened a block of frames at a time: those that turn faster than the limit
+    somewhere (however the blocks fall), a joint exactly at it too (never missed by
+    rounding), none slower."""
+    fps = 50.0
+    rng = np.random.default_rng(2)
+    q = np.cumsum(rng.uniform(-0.7, 0.7, size=(40, 6)) * [1, 1, 0.5, 0.5, 1, 1], axis=0)
+    q[:, 4] = np.arange(40) * (JOINT_LIMIT / fps)  # exactly at the limit
+    q[:, 5] = 0.1 * np.sin(np.arange(40) / 5)  # slow
+    over = [(frame_speeds(q[:, j], fps) > JOINT_LIMIT).any() for j in range(6)]
+    for block in (1, 3, 4096):
+        got = turning_fast(q, [0, 1, 2, 3, 4, 5], JOINT_LIMIT / fps, block)
+        assert (got[:4] == over[:4]).all() and got[4] and not got[5]
+    assert over[:4] == [True, True, False, False] and not over[5]
 
 
 def test_a_movement_belongs_to_the_block_it_moves_into():

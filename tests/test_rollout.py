@@ -7,7 +7,9 @@ import pytest
 from scores import cstr, envelope, sync
 
 from azee_mj import ik
-from azee_mj.rollout import constraint_traces, site_positions, solve_stats
+from azee_mj.ikadapter import IKAdapter
+from azee_mj.motion import Mode, Motion
+from azee_mj.rollout import ResidualTable, constraint_traces, site_positions, solve_stats
 from azee_mj.schedule import Schedule
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
@@ -40,6 +42,30 @@ def test_traces_measure_each_placement_over_its_blocks_frames(schedule, solver):
     assert np.isnan(trace.values[:5]).all() and np.isnan(trace.values[15:]).all()
     assert trace.worst == pytest.approx(max(want)) and not trace.ok
     assert trace.reason == "out of reach" and "out of reach" in trace.describe()
+
+
+def test_a_residual_table_names_the_frames_out_of_tolerance_and_measures_changes(schedule, solver):
+    """The frames the realizer solves again are those its own check finds
+    (``Motion.misses``), and the traces after it are those measured afresh."""
+    q = _frames(solver)
+    times = np.arange(len(q)) / 50.0
+    _, c, place, _ = ResidualTable(schedule, q, 50.0).items[0]
+    q[[6, 10]] = solver.solve(ik.IKProblem((place,)), solver.natural).qpos  # two frames meet it
+    table = ResidualTable(schedule, q, 50.0)
+    (trace,) = table.traces()
+    far = [f for f in range(5, 15) if not trace.active[f - 5] <= trace.tol]
+    assert list(table.misses()) == far == [5, 7, 8, 9, 11, 12, 13, 14]
+    tracks = schedule.comp.tracks_of(c)
+    assert all(m == [(place, tracks)] for m in table.misses().values())
+    check = Motion(IKAdapter(schedule), Mode.MULTITRACK, 50.0).misses(q, times)
+    assert table.misses() == check
+    q[[7, 9]] = solver.natural  # two frames moved: measured again only once said
+    table.update(q, [7, 9])
+    fresh = ResidualTable(schedule, q, 50.0)
+    np.testing.assert_array_equal(table.values[0], fresh.values[0])
+    assert table.misses() == fresh.misses()
+    (again,) = constraint_traces(schedule, q, np.arange(len(q)) / 50.0, 50.0)
+    np.testing.assert_array_equal(again.active, table.traces()[0].active)
 
 
 def test_site_positions_are_the_sites_of_each_frame(solver):

@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.signal import find_peaks
 
 #: Minimum-jerk speed peak over mean speed: a rest-to-rest reach of distance D in time T
 #: peaks at ``MINJERK_PEAK * D / T`` (Flash and Hogan 1985).
@@ -80,6 +79,8 @@ def speed_peaks(sp: np.ndarray) -> int:
     sp = np.asarray(sp, float)
     if sp.size < 3 or sp.max() <= 0.0:
         return int(sp.size > 0 and sp.max() > 0.0)
+    from scipy.signal import find_peaks  # here: 70 MB that realizing never needs
+
     padded = np.r_[0.0, sp, 0.0]  # a peak at either end still counts
     peaks, _ = find_peaks(padded, prominence=PEAK_PROMINENCE * sp.max())
     return len(peaks)

@@ -21,7 +21,6 @@ Pure functions of sampled positions (no model). Units: metres, seconds.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from azee_mj.blend import minjerk
 
@@ -100,6 +99,8 @@ def paced(
     target = sigma[-1] * minjerk(u)
     pins = sorted(p for p in set(pins) if 1 < p < n - 2)  # next to an end: the end
     if pins:
+        from scipy.interpolate import PchipInterpolator  # here: 50 MB a realization may not need
+
         miss = np.interp(s[pins], grid, sigma) - target[pins]
         target = target + PchipInterpolator(np.r_[0.0, u[pins], 1.0], np.r_[0.0, miss, 0.0])(u)
         if np.any(np.diff(target) < 0.0):

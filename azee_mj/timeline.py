@@ -37,7 +37,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from azee_mj import ik, mirror
+from azee_mj import heap, ik, mirror
 from azee_mj import score as sc
 from azee_mj.anatomy import ACROSS
 from azee_mj.blend import REST_HOLD
@@ -156,14 +156,16 @@ def realize(
     shaken = constraint_traces(own, flip(q) if flip else q, times, fps, reasons, lead, trilled)
     q = motion.trills(q, times)
     q, traces = held(motion, own, q, keys, flip, reasons, trilled)
+    shift, results = motion.score_start, adapter.results
+    del keys, poser, motion, adapter  # grown with the score, and not needed from here
+    heap.release()
     traces = tuple(sorted(shaken + traces, key=order_of(own)))
     site_pos = site_positions(solver, smap, q)
     tick(1.0)
     rt = np.arange(len(times)) / fps
-    shift = motion.score_start
     intervals = shifted(own.intervals(), shift)
     found = findings_of(solver, own, rt, q, site_pos, smap, intervals, shift, traces)
-    stats = solve_stats(adapter.results, n_key, _time.perf_counter() - t_start)
+    stats = solve_stats(results, n_key, _time.perf_counter() - t_start)
     return Rollout(
         fps, mode, rt, q, tuple(smap.sites), site_pos, intervals, traces, stats, shift, found
     )

@@ -12,6 +12,7 @@ Units: seconds, metres, radians.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import itertools
 import math
@@ -143,7 +144,7 @@ class Pacer:
         same frames go together (a two-handed sign), by their summed path. Only the
         frames not ``held`` (T,) under a constraint are smoothed (in place)."""
         sched, solver = self.schedule, self.adapter.solver
-        curved = self.curved_paths()
+        curved, (ends, limbs) = self.curved_paths(), self.path_ends(times)
         runs = []
         for ti, t in enumerate(names):
             side = t.removeprefix("arm_")
@@ -158,7 +159,8 @@ class Pacer:
                 s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1
             ]
             sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
-            pins = [f - a for f in self.path_ends(times, tracks) if a < f < b]
+            within = range(bisect.bisect_right(ends, a), bisect.bisect_left(ends, b))
+            pins = [ends[i] - a for i in within if limbs[i] & set(tracks)]
             keep = np.flatnonzero(held[a : b + 1]).tolist()
             new = self.paced_run(
                 q[a : b + 1], times[a : b + 1], tracks, sids, bool(along), pins, keep
@@ -212,14 +214,18 @@ class Pacer:
                 return path[:, d]
         return None
 
-    def path_ends(self, times, tracks) -> list[int]:
-        """The frames at ``times`` where a transpath of ``tracks`` starts or ends."""
-        comp, out = self.schedule.comp, []
+    def path_ends(self, times) -> tuple[list[int], list[set[str]]]:
+        """The frames at ``times`` where the score's transpaths start or end, ascending,
+        and the tracks of the limb each moves (worked out once: asked for every movement,
+        a scan of the blocks each time grew with the square of the score)."""
+        comp, ends = self.schedule.comp, []
         for b in self.schedule.blocks:
-            limbs = comp.site_tracks(comp.site(b.transpath_site)) if b.transpath_site else set()
-            if b.kind is sc.BlockKind.TRANSPATH and limbs & set(tracks):
-                out += np.searchsorted(times, [b.start - 1e-9, b.end - 1e-9]).tolist()
-        return out
+            if b.kind is sc.BlockKind.TRANSPATH and b.transpath_site:
+                limbs = comp.site_tracks(comp.site(b.transpath_site))
+                f0, f1 = np.searchsorted(times, [b.start - 1e-9, b.end - 1e-9]).tolist()
+                ends += [(f0, limbs), (f1, limbs)]
+        ends.sort(key=lambda e: e[0])
+        return [f for f, _ in ends], [limbs for _, limbs in ends]
 
     def peak_speed(self, pts: np.ndarray) -> float:
         """The fastest any site at ``pts`` (n, k, 3) moves [m/s]."""

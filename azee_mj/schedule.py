@@ -301,13 +301,14 @@ class TrackInterval:
 
 @dataclasses.dataclass(frozen=True)
 class ContactWindow:
-    """A contact constraint's interval ``[start, end)`` [s] and the two model bodies it
-    brings together (allowed to touch then)."""
+    """A contact constraint's interval ``[start, end)`` [s] and the pairs of model bodies
+    it brings together (allowed to touch then), each pair in both orders (shared by the
+    windows of every contact between the same parts: one set per kind of contact, not one
+    record per pair of bodies and block)."""
 
     start: float
     end: float
-    body: int
-    other: int
+    pairs: frozenset[tuple[int, int]]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -351,7 +352,7 @@ class Schedule:
         together: a hand counts as one part (its fingers touch too), except in a contact
         of two digits of one hand (a pinch), which brings only their two phalanges
         together: the rest of that hand keeps clear of itself."""
-        out = []
+        out, shared = [], {}
         part, site_body = self.anatomy.part, self.anatomy.site_body
         for b in self.blocks:
             for c in b.constraints if b.kind is sc.BlockKind.CSTR else ():
@@ -362,20 +363,21 @@ class Schedule:
                 for s in partners:
                     other = part(site_body(s))
                     pair = ((body,), (site_body(s),)) if other == mine else (mine, other)
-                    out += [
-                        ContactWindow(b.start, b.end, x, y)
-                        for x in pair[0]
-                        for y in pair[1]
-                        if x != y
-                    ]
+                    pairs = frozenset(
+                        p for x in pair[0] for y in pair[1] if x != y for p in ((x, y), (y, x))
+                    )
+                    if pairs:
+                        out.append(ContactWindow(b.start, b.end, shared.setdefault(pairs, pairs)))
         return out
 
     def allowed_at(self, t: float) -> frozenset[tuple[int, int]]:
         """Body pairs a contact active at time ``t`` [s] brings together (both orders)."""
         if self._contact_index is None:  # (in logarithmic time: asked at every frame)
             self._contact_index = IntervalIndex((w.start - 1e-9, w.end) for w in self.contacts)
-        ws = [self.contacts[i] for i in self._contact_index.at(t)]
-        return frozenset(p for w in ws for p in ((w.body, w.other), (w.other, w.body)))
+        held = self._contact_index.at(t)
+        if len(held) == 1:
+            return self.contacts[held[0]].pairs
+        return frozenset().union(*(self.contacts[i].pairs for i in held))
 
     def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
         """What each constraint of a cstr block drives, in order."""
@@ -517,6 +519,6 @@ def contact_pairs(
     lead = round(score_start * fps)
     for w in r.contacts:
         f = frame_range(w.start, w.end, fps, len(times) - lead)
-        pair = (r.body_names[w.body], r.body_names[w.other])
-        spans.setdefault((f.start + lead, f.stop + lead), set()).add(pair)
+        pairs = {(r.body_names[a], r.body_names[b]) for a, b in w.pairs if a < b}
+        spans.setdefault((f.start + lead, f.stop + lead), set()).update(pairs)
     return FramePairs({k: frozenset(v) for k, v in spans.items()})

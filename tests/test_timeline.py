@@ -93,9 +93,10 @@ def test_contact_pairs_answer_each_frame_as_its_contact_windows_say(solver):
     sched, lead = Schedule(score, solver), round(start * fps)
     table: dict[int, set] = {}
     for w in sched.contacts:
+        assert all((b, a) in w.pairs for a, b in w.pairs)  # both orders
         for f in frame_range(w.start, w.end, fps, n - lead):
-            table.setdefault(f + lead, set()).add(
-                (sched.body_names[w.body], sched.body_names[w.other])
+            table.setdefault(f + lead, set()).update(
+                (sched.body_names[a], sched.body_names[b]) for a, b in w.pairs if a < b
             )
     assert table and dict(allowed) == table and len(allowed) == len(table)
     assert all(allowed.get(f, frozenset()) == table.get(f, set()) for f in range(-2, n + 2))

@@ -109,6 +109,7 @@ class GroupPoser:
         self.prefs = Preferences(adapter.solver, self.schedule.anatomy, self.schedule.smap)
         #: facing label -> the face-to-face solve dropped for the placement alone
         self.unfaced: dict[str, Unfaced] = {}
+        self._free: dict[tuple[str, ...], tuple[str, ...]] = {}  # one tuple per set of joints
 
     def constraints(self, mine: list[Active]) -> list:
         """The solver constraints of active constraints ``mine``: theirs, then the joint
@@ -162,6 +163,7 @@ class GroupPoser:
         cons = self.constraints(mine)
         joints = self.schedule.track_joints
         free = tuple(j for t in sorted(group) if t not in held for j in joints[t])
+        free = self._free.setdefault(free, free)  # every key keeps it
         if reuse and self.unchanged(group, cons, state, keys, t0):
             kept = ik.IKResult(state.copy(), True, (), 0.0, 0, 0, 0.0, np.zeros(0))
             return GroupSolve(kept, tuple(cons), free)

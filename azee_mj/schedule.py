@@ -343,6 +343,7 @@ class Schedule:
         self.contacts = self._contact_windows()
         self._contact_index: IntervalIndex | None = None
         self._moved_cache: dict = {}
+        self._track_sets: dict[frozenset[str], frozenset[str]] = {}
         self.body_names = [
             mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(self.m.nbody)
         ]
@@ -430,13 +431,13 @@ class Schedule:
                 ts.update((b.start, b.end))
         return sorted(t for t in ts if 0.0 <= t <= self.score.duration)
 
-    def moved_by(self, c) -> set[str]:
+    def moved_by(self, c) -> frozenset[str]:
         """Tracks whose joints move a body that IK constraint ``c`` names."""
         if c not in self._moved_cache:
             bodies = self.solver.bodies_of(c)
-            self._moved_cache[c] = set().union(
-                *(self.comp.body_tracks(b, own_only=False) for b in bodies)
-            )
+            tracks = frozenset().union(*(self.comp.body_tracks(b, own_only=False) for b in bodies))
+            # one set per answer, shared by every constraint giving it (a score has few)
+            self._moved_cache[c] = self._track_sets.setdefault(tracks, tracks)
         return self._moved_cache[c]
 
     def moving_dofs(self, c) -> np.ndarray:

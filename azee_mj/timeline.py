@@ -141,6 +141,7 @@ def realize(
     adapter = IKAdapter(sched)
     poser = KeyPoser(adapter, mode)
     keys = poser.key_postures()
+    heap.release()  # the solves' scratch, freed among the keys that live on
     n_key = len(adapter.results)
     tick(0.4)
     motion = Motion(adapter, mode, fps, rest, hold)

@@ -90,6 +90,10 @@ def is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
+#: The annotations of a block that has none (read-only, shared).
+NO_ANNOTATIONS: Mapping[str, Any] = MappingProxyType({})
+
+
 def freeze(v: Any) -> Any:
     """An immutable copy of a JSON value (mappings become read-only, lists tuples)."""
     if isinstance(v, Mapping):
@@ -131,7 +135,8 @@ def check_keys(
                 field=f"{prefix}{key}",
                 show_field=False,
             )
-    return freeze({k: v for k, v in obj.items() if isinstance(k, str) and k.startswith("x-")})
+    kept = {k: v for k, v in obj.items() if isinstance(k, str) and k.startswith("x-")}
+    return freeze(kept) if kept else NO_ANNOTATIONS  # most blocks have none: one shared
 
 
 def number(loc: Loc, field: str, v: Any) -> float:

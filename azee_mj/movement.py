@@ -75,15 +75,40 @@ def ldlj(pos: np.ndarray, fs: float) -> float:
 
 
 def speed_peaks(sp: np.ndarray) -> int:
-    """How many speed peaks of ``sp`` stand out by :data:`PEAK_PROMINENCE` of its maximum."""
+    """How many speed peaks of ``sp`` stand out by :data:`PEAK_PROMINENCE` of its maximum.
+
+    What ``scipy.signal.find_peaks(..., prominence=...)`` counts (a flat top is one peak;
+    a peak's prominence is its height over the higher of the lowest points between it and
+    a higher point on either side), written out: the realizer asks it of every bent
+    movement, and importing ``scipy.signal`` costs a process 70 MB."""
     sp = np.asarray(sp, float)
     if sp.size < 3 or sp.max() <= 0.0:
         return int(sp.size > 0 and sp.max() > 0.0)
-    from scipy.signal import find_peaks  # here: 70 MB that realizing never needs
+    x = np.r_[0.0, sp, 0.0].tolist()  # a peak at either end still counts
+    need, n, count, i = PEAK_PROMINENCE * sp.max(), len(x), 0, 1
+    while i < n - 1:
+        if x[i - 1] < x[i]:
+            ahead = i + 1
+            while ahead < n - 1 and x[ahead] == x[i]:
+                ahead += 1
+            if x[ahead] < x[i]:
+                count += prominence(x, (i + ahead - 1) // 2) >= need
+                i = ahead
+        i += 1
+    return count
 
-    padded = np.r_[0.0, sp, 0.0]  # a peak at either end still counts
-    peaks, _ = find_peaks(padded, prominence=PEAK_PROMINENCE * sp.max())
-    return len(peaks)
+
+def prominence(x: list[float], p: int) -> float:
+    """The prominence of the peak at ``x[p]``: its height over the higher of the lowest
+    points between it and the nearest higher point (or the end) on either side."""
+    h, lows = x[p], []
+    for step in (-1, 1):
+        i, low = p, h
+        while 0 <= i < len(x) and x[i] <= h:
+            low = min(low, x[i])
+            i += step
+        lows.append(low)
+    return h - max(lows)
 
 
 def power_law_exponent(pos: np.ndarray, fs: float, min_curvature: float = 2.0):

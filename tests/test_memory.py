@@ -4,6 +4,8 @@ solver plans are freed, the adapter keeps what each solve took and not its resul
 from __future__ import annotations
 
 import gc
+import subprocess
+import sys
 import weakref
 from pathlib import Path
 
@@ -16,6 +18,7 @@ from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
 
 DATA = Path(__file__).parent / "data"
+EXAMPLES = Path(__file__).parent.parent / "examples"
 REACH = (cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 0.3))),)
 ARM = tuple(DEFAULT_MAP.tracks["arm_R"])
 
@@ -42,3 +45,15 @@ def test_the_adapter_keeps_what_each_solve_took(solver):
     adapter = IKAdapter(Schedule(load_score(DATA / "good.json"), solver))
     res = adapter.solve(REACH, ARM, solver.natural.copy(), 0.0)
     assert adapter.results == [Solved(res.iterations, res.converged, res.time)]
+
+
+def test_realizing_imports_no_scipy():
+    # scipy.signal and scipy.interpolate cost a process 50 to 70 MB each: a realization (a
+    # sign with a bent arm, paced movements) must not pull them in
+    code = (
+        "import sys; from azee_mj.timeline import realize; "
+        f"realize({str(EXAMPLES / 'info-about.json')!r}); "
+        "print(sorted(m for m in sys.modules if m.startswith('scipy.')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -68,3 +68,26 @@ def test_movements_split_at_pauses_and_bridge_short_ones():
 
 def test_no_movement_in_a_still_trajectory():
     assert mv.movements(np.zeros((50, 3)), FS) == []
+
+
+def test_speed_peaks_counts_what_scipy_find_peaks_counts():
+    from scipy.signal import find_peaks
+
+    rng = np.random.default_rng(7)
+    for n in [3, 4, 5, 8, 20, 60, 200] * 40:
+        # rounded to few levels: flat tops, ties between peaks and zero runs happen often
+        sp = np.round(rng.random(n) * rng.choice([2, 5, 50]), 0) * rng.random()
+        if rng.random() < 0.3:
+            sp = np.convolve(sp, np.ones(5) / 5, mode="same")  # smooth bells
+        expected = (
+            len(find_peaks(np.r_[0.0, sp, 0.0], prominence=mv.PEAK_PROMINENCE * sp.max())[0])
+            if sp.max() > 0.0
+            else 0
+        )
+        assert mv.speed_peaks(sp) == expected, sp.tolist()
+
+
+def test_prominence_of_a_peak_between_two_higher_ones():
+    x = [0.0, 3.0, 1.0, 2.0, 0.5, 4.0, 0.0]
+    assert mv.prominence(x, 3) == 1.0  # 2 over the higher of its two saddles (1 and 0.5)
+    assert mv.prominence(x, 5) == 4.0  # the highest: down to the ends

@@ -10,6 +10,7 @@ Units: seconds, radians (metres for a slide joint).
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 
 import numpy as np
@@ -149,10 +150,10 @@ def holds_of(keys: list[Key], dofs: np.ndarray) -> list[Hold]:
 
 def after_carried(w0: float, w1: float, carried) -> float:
     """A blend's start ``w0`` [s] moved no earlier than the last end before ``w1`` of a
-    key of another track this one carries (``carried``, end times), but never so late the
+    key of another track this one carries (``carried``, end times, ascending), but never so late the
     blend is shorter than ``MIN_BLEND`` (a carried hold may end as this one starts)."""
-    pins = [e for e in carried if e < w1 + EPS]
-    return max(w0, min(max(pins), w1 - MIN_BLEND)) if pins else w0
+    i = bisect.bisect_left(carried, w1 + EPS)  # (ascending) the last one before w1
+    return max(w0, min(carried[i - 1], w1 - MIN_BLEND)) if i else w0
 
 
 def blend_window(
@@ -220,7 +221,7 @@ def track_curve(
         out = np.empty((len(times), len(dofs)))
     out[:] = start
     blending = np.zeros(len(times), bool)
-    prev, prev_q = None, start
+    prev, prev_q, blends = None, start, []
     for hold in holds:
         if prev is None and rest is not None:
             w0, w1 = hold.start - (rest.lead or 0.0), hold.start
@@ -228,11 +229,12 @@ def track_curve(
                 w0 = after_carried(w0, w1, carried)
         else:
             w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
-        _blend(out, blending, times, w0, w1, prev_q, hold.q)
+        blends.append((w0, w1, prev_q, hold.q))
         prev, prev_q = hold, hold.q
     if rest is not None and rest.relax_at is not None and holds:
         w0 = rest.relax_at
-        _blend(out, blending, times, w0, w0 + rest.relax, prev_q, home[dofs])
+        blends.append((w0, w0 + rest.relax, prev_q, home[dofs]))
+    _blend(out, blending, times, blends)
     return out, blending
 
 
@@ -248,16 +250,26 @@ class Columns:
         self.q[rows, self.cols] = values
 
 
-def _blend(out, blending, times, w0: float, w1: float, qa, qb) -> None:
-    """Frames at ``times`` in ``[w0, w1)`` from ``qa`` to ``qb`` in minimum-jerk time, and
-    ``qb`` from ``w1`` on (in place)."""
+def _blend(out, blending, times, blends) -> None:
+    """Frames at ``times`` through ``blends`` ``(w0, w1, qa, qb)``, in order: each from
+    ``qa`` to ``qb`` in minimum-jerk time over the frames in ``[w0, w1)``, and ``qb`` after
+    them, until a later blend starts (in place). What writing each blend over every frame
+    after its start would leave, each frame written once: that was quadratic in the
+    score."""
     # ``times`` ascend: the frames in a window are a slice (not a scan of every frame)
-    a, b = np.searchsorted(times, (w0, w1), side="left")
-    if w1 > w0:
-        u = minjerk((times[a:b] - w0) / (w1 - w0))[:, None]
-        out[a:b] = qa + u * (qb - qa)
-        blending[a:b] = True
-    out[b:] = qb
+    spans = [np.searchsorted(times, (w0, w1), side="left") for w0, w1, _, _ in blends]
+    until, stop = [], len(times)  # a blend's frames end where a later one starts
+    for a, b in reversed(spans):
+        until.append(stop)
+        stop = min(stop, a, b)
+    for (w0, w1, qa, qb), (a, b), end in zip(blends, spans, reversed(until)):
+        if w1 > w0:
+            blending[a:b] = True
+            if min(b, end) > a:
+                u = minjerk((times[a : min(b, end)] - w0) / (w1 - w0))[:, None]
+                out[a : min(b, end)] = qa + u * (qb - qa)
+        if end > b:
+            out[b:end] = qb
 
 
 def goal_key(keys: list[Key], i: int, dofs: np.ndarray) -> Key | None:

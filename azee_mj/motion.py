@@ -105,13 +105,16 @@ def coupled(runs: list[tuple]) -> list[list[tuple]]:
     """``runs`` ``(a, b, ...)`` grouped: those over the same frames (within one at either
     end) together, spanning the widest."""
     groups: list[list[tuple]] = []
+    firsts: list[int] = []  # each group's first start, ascending (the runs are sorted)
     for r in sorted(runs, key=lambda r: r[:2]):
-        for g in groups:
+        # only groups starting at r[0] - 1 or later can take it (not a scan of them all)
+        for g in groups[bisect.bisect_left(firsts, r[0] - 1) :]:
             if abs(g[0][0] - r[0]) <= 1 and abs(g[0][1] - r[1]) <= 1:
                 g.append(r)
                 break
         else:
             groups.append([r])
+            firsts.append(r[0])
     out = []
     for g in groups:
         a, b = min(r[0] for r in g), max(r[1] for r in g)

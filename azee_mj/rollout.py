@@ -17,6 +17,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik
 from azee_mj import score as sc
 from azee_mj.frames import Frames, SitePositions
+from azee_mj.intervals import IntervalIndex
 from azee_mj.schedule import Mode, Schedule, TrackInterval
 from azee_mj.sites import SignerMap
 from azee_mj.timing import frame_range
@@ -247,12 +248,13 @@ class ResidualTable:
 
     def update(self, q: np.ndarray, frames) -> None:
         """The residuals at ``frames`` of ``q`` (T, nq) measured again (frames that changed)."""
+        spans = IntervalIndex((span.start, span.stop) for _, _, _, span in self.items)
         for f in sorted(frames):
-            k = None
-            for (_, _, ic, span), vals in zip(self.items, self.values):
-                if span.start <= f < span.stop:
-                    k = self.schedule.solver.at(q[f]) if k is None else k
-                    vals[f - span.start] = ic.residual(k)
+            held = spans.at(f)  # (every constraint asked at every frame: quadratic)
+            k = self.schedule.solver.at(q[f]) if held else None
+            for i in held:
+                span = self.items[i][3]
+                self.values[i][f - span.start] = self.items[i][2].residual(k)
 
     def traces(self, reasons=None) -> tuple[ConstraintTrace, ...]:
         """The traces of the residuals; ``reasons`` (constraint label -> why its key posture

@@ -294,6 +294,7 @@ def _cmd_realize(args, run: _Run) -> int:
     save_rollout(args.output, rollout, inputs=(path,), options=options)
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
+    heap.release()  # the file's buffers, before the verdict's come
     # the penetration verdict 'check --score' would say of this rollout, said here too: on
     # the signer 'check' loads (the solver's copy lacks the visual geoms, whose numbers
     # name the unnamed geoms, and adds margins)

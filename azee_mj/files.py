@@ -235,6 +235,23 @@ class _Rows:
             yield i, self.a[i : i + step]
 
 
+class Chain:
+    """Arrays ``parts`` one after another, as one (N, ...) array of ``dtype`` for
+    :func:`save_npz` to write a part at a time (never concatenated in memory)."""
+
+    def __init__(self, parts, dtype):
+        self.dtype = np.dtype(dtype)
+        self.parts = [np.asarray(p, self.dtype) for p in parts]
+        rest = self.parts[0].shape[1:] if self.parts else ()
+        self.shape = (sum(len(p) for p in self.parts), *rest)
+
+    def blocks(self):
+        a = 0
+        for p in self.parts:
+            yield a, p
+            a += len(p)
+
+
 def _write_blocks(f, frames) -> None:
     """An ``.npy`` of ``frames`` (C order) written a block at a time, as ``write_array``
     writes the whole array."""

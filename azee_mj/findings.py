@@ -54,13 +54,33 @@ def block_at(intervals, t: float, score_start: float, end: float) -> str:
     return intervals[-1].block
 
 
-def _columns(site_pos, sites: list[int]) -> np.ndarray:
-    """(T, len(sites), 3) the ``sites`` of ``site_pos`` (T, S, 3), a block of frames at a
-    time when it has blocks (a lazy :class:`~azee_mj.frames.Frames`: never whole)."""
-    if hasattr(site_pos, "blocks"):
-        parts = [b[:, sites] for _, b in site_pos.blocks()]
-        return np.concatenate(parts) if parts else np.zeros((0, len(sites), 3))
-    return np.asarray(site_pos)[:, sites]
+def site_speeds(site_pos, sites: list[int], fps: float) -> list[np.ndarray]:
+    """Per site of ``sites``, its (T,) :func:`frame_speeds` [m/s] from ``site_pos``
+    (T, S, 3), a block of frames at a time (a lazy :class:`~azee_mj.frames.Frames` is never
+    whole, and no (T, len(sites), 3) copy is made): the same values."""
+    blocks = (
+        site_pos.blocks()
+        if hasattr(site_pos, "blocks")
+        else ((a, site_pos[a : a + 4096]) for a in range(0, len(site_pos), 4096))
+    )
+    d, last, n = [], None, 0
+    for _, b in blocks:
+        x = np.asarray(b)[:, sites]
+        n += len(x)
+        if last is not None:
+            x = np.concatenate([last, x])
+        if len(x) > 1:
+            d.append(np.linalg.norm(np.diff(x, axis=0), axis=2) * fps)
+        last = x[-1:]
+    steps = np.concatenate(d) if d else np.zeros((0, len(sites)))
+    out = []
+    for k in range(len(sites)):
+        step = np.zeros(n)
+        if n > 1:
+            step[1:] = steps[:, k]
+            step[:-1] = np.maximum(step[:-1], steps[:, k])
+        out.append(step)
+    return out
 
 
 def speed_findings(
@@ -82,15 +102,18 @@ def speed_findings(
     fps = 1.0 / float(rollout_time[1] - rollout_time[0])
     out = []
     wrists = [site for site in WRISTS if site in site_names]
-    tracks = _columns(site_pos, [site_names.index(site) for site in wrists])
+    speeds = site_speeds(site_pos, [site_names.index(site) for site in wrists], fps)
     # one speed series at a time: all of them at once are as large as the postures
     fast = turning_fast(qpos, [adr for _, adr in joints.values()], JOINT_LIMIT / fps)
     checks = itertools.chain(
-        ((site, WRISTS[site], tracks[:, k], "m/s") for k, site in enumerate(wrists)),
-        ((j, tr, qpos[:, adr], "rad/s") for (j, (tr, adr)), f in zip(joints.items(), fast) if f),
+        ((site, WRISTS[site], v, "m/s") for site, v in zip(wrists, speeds)),
+        (
+            (j, tr, frame_speeds(qpos[:, adr], fps), "rad/s")
+            for (j, (tr, adr)), f in zip(joints.items(), fast)
+            if f
+        ),
     )
-    for what, track, x, unit in checks:
-        v = frame_speeds(x, fps)
+    for what, track, v, unit in checks:
         limit = WRIST_LIMIT if unit == "m/s" else JOINT_LIMIT
         for f0, f1 in runs(v > limit):
             peak = f0 + int(np.argmax(v[f0 : f1 + 1]))

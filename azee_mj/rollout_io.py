@@ -38,7 +38,7 @@ import zipfile
 import numpy as np
 
 from azee_mj.errors import InputFileError, shorten
-from azee_mj.files import save_npz
+from azee_mj.files import Chain, save_npz
 from azee_mj.frames import Frames, NpzFrames, nonfinite_frames
 from azee_mj.physics import DynamicRollout
 from azee_mj.schedule import TrackInterval
@@ -78,7 +78,11 @@ def rollout_arrays(rollout: Rollout, lazy: bool = False) -> dict[str, np.ndarray
         "residual_span": np.array([(t.start, t.end) for t in tr], dtype=float).reshape(len(tr), 2),
         "residual_first": np.array([t.first for t in tr], dtype=np.int64),
         "residual_count": np.array([len(t.active) for t in tr], dtype=np.int64),
-        "residual_values": (np.concatenate([t.active for t in tr]) if tr else np.zeros(0)),
+        "residual_values": (
+            Chain([t.active for t in tr], float)
+            if lazy
+            else (np.concatenate([t.active for t in tr]) if tr else np.zeros(0))
+        ),
         "schedule_track": np.array([i.track for i in ivs], dtype=str),
         "schedule_block": np.array([i.block for i in ivs], dtype=str),
         "schedule_span": np.array([(i.start, i.end) for i in ivs], dtype=float).reshape(

@@ -7,7 +7,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from azee_mj.files import ROWS_BYTES, save_npz
+from azee_mj.files import ROWS_BYTES, Chain, save_npz
 
 
 @pytest.mark.parametrize(
@@ -27,3 +27,14 @@ def test_an_array_is_written_as_numpy_writes_it(tmp_path, array):
     np.lib.format.write_array(expected, array, allow_pickle=False)
     assert written == expected.getvalue()
     np.testing.assert_array_equal(np.load(tmp_path / "a.npz")["a"], array)
+
+
+@pytest.mark.parametrize("parts", [[np.arange(5.0), np.zeros(0), np.ones(3)], []])
+def test_a_chain_is_written_as_its_concatenation(tmp_path, parts):
+    save_npz(tmp_path / "c.npz", {"c": Chain(parts, float)})
+    whole = np.concatenate(parts) if parts else np.zeros(0)
+    with zipfile.ZipFile(tmp_path / "c.npz") as z:
+        written = z.read("c.npy")
+    expected = io.BytesIO()
+    np.lib.format.write_array(expected, whole, allow_pickle=False)
+    assert written == expected.getvalue()

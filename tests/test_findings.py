@@ -82,3 +82,21 @@ def test_constraint_findings_count_the_frames_out_of_tolerance():
     assert (f.start, f.end) == (11 / 50.0, 12 / 50.0)
     assert f.describe().startswith("constraint: constraint 0 (place) 3.00 mm (limit 1.00)")
     assert leaving([tr, ok]).nonzero()[0].tolist() == [11, 12]
+
+
+def test_site_speeds_a_block_at_a_time_are_frame_speeds_of_the_whole_array():
+    from azee_mj.findings import frame_speeds, site_speeds
+
+    pos = np.random.default_rng(3).random((10_000, 5, 3))
+
+    class Blocks:  # as a lazy rollout's site positions give them
+        def blocks(self):
+            for a in range(0, len(pos), 1024):
+                yield a, pos[a : a + 1024]
+
+    for source in (pos, Blocks()):
+        got = site_speeds(source, [4, 1], 50.0)
+        assert [g.shape for g in got] == [(10_000,), (10_000,)]
+        np.testing.assert_array_equal(got[0], frame_speeds(pos[:, 4], 50.0))
+        np.testing.assert_array_equal(got[1], frame_speeds(pos[:, 1], 50.0))
+    assert site_speeds(pos[:1], [0], 50.0)[0].tolist() == [0.0]

@@ -125,35 +125,36 @@ class Detour:
                 best, length = new, speed.sum()
         return best
 
-    def wrist_speed(self, run, new, d, track: str, times) -> np.ndarray | None:
-        """(n,) the speed [m/s] of arm ``track``'s wrist over ``run`` (n, nq) with its dofs
-        ``d`` at ``new``; None if the signer has no such wrist or it stands still."""
+    def wrist_path_speed(self, frames, track: str, times) -> np.ndarray | None:
+        """(n,) the speed [m/s] of arm ``track``'s wrist over postures ``frames`` (n, nq) at
+        ``times``; None if the signer has no such wrist or there is a single frame."""
         site = self.schedule.smap.sites.get(f"WR_{track.removeprefix('arm_')}")
         if site is None or len(times) < 2:
             return None
         sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
+        pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
+        return mv.speed(pos, fps)
+
+    def wrist_speed(self, run, new, d, track: str, times) -> np.ndarray | None:
+        """(n,) the speed [m/s] of arm ``track``'s wrist over ``run`` (n, nq) with its dofs
+        ``d`` at ``new``; None if the signer has no such wrist or it stands still."""
         bent = run.copy()
         bent[:, d] = new
-        pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in bent])
-        speed = mv.speed(pos, fps)
-        return speed if speed.max() > 0.0 else None
+        speed = self.wrist_path_speed(bent, track, times)
+        return speed if speed is not None and speed.max() > 0.0 else None
 
     def rushed(self, run: np.ndarray, new: np.ndarray, d, track: str, times) -> bool:
         """Whether the bent blend (``new``, the dofs ``d`` of arm ``track`` over the blend
         ``run`` (n, nq)) moves its wrist faster than :data:`FASTEST` where the straight
         one did not: a longer path in the same time."""
-        site = self.schedule.smap.sites.get(f"WR_{track.removeprefix('arm_')}")
-        if site is None or len(times) < 2:
-            return False
-        sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
         bent = run.copy()
         bent[:, d] = new
-
-        def peak(frames):
-            pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
-            return float(mv.speed(pos, fps).max())
-
-        return peak(bent) > max(peak(run), FASTEST)
+        fast = self.wrist_path_speed(bent, track, times)
+        if fast is None:
+            return False
+        return float(fast.max()) > max(
+            float(self.wrist_path_speed(run, track, times).max()), FASTEST
+        )
 
     def bent_run(
         self, run, times, d, joints, reach: float = REACH, timed: bool = False

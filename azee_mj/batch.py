@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from azee_mj import heap
 from azee_mj.errors import AzeeError
 from azee_mj.lifeline import lifeline, worker_context
 
@@ -238,7 +237,6 @@ def _realize_file(job, fps, mode, solver, lexicon, progress, motion=None) -> tup
     score = read_score(job.score, lexicon)
     rollout = realize(score, fps=fps, mode=mode, solver=solver, progress=progress, **motion)
     score = at_tempo(score, motion.get("tempo", 1.0), 0.0)
-    heap.release()  # what realizing freed, before the file's buffers come on top of it
     save_rollout(job.output, rollout, inputs=(job.score,), options=options)
     if job.report is not None:
         save_json(job.report, rollout.report(), inputs=(job.score, job.output))

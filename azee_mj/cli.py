@@ -238,7 +238,6 @@ class _Progress:
 
 
 def _cmd_realize(args, run: _Run) -> int:
-    from azee_mj import heap
     from azee_mj.batch import fingerprint, missed, summary_lines
     from azee_mj.check import rollout_verdict, verdict_lines
     from azee_mj.files import save_json
@@ -290,11 +289,9 @@ def _cmd_realize(args, run: _Run) -> int:
         dynamics=args.dynamics,
         blinks=None if args.blinks is None else (args.blinks, args.blink_rate),
     )
-    heap.release()  # what realizing freed, before the file's buffers come on top of it
     save_rollout(args.output, rollout, inputs=(path,), options=options)
     if args.report:
         save_json(args.report, rollout.report(), inputs=(path, args.output))
-    heap.release()  # the file's buffers, before the verdict's come
     # the penetration verdict 'check --score' would say of this rollout, said here too: on
     # the signer 'check' loads (the solver's copy lacks the visual geoms, whose numbers
     # name the unnamed geoms, and adds margins)

@@ -209,30 +209,26 @@ def save_npz(
             info = zipfile.ZipInfo(f"{k}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             with zf.open(info, "w", force_zip64=True) as f:
-                a = v if hasattr(v, "blocks") else np.asanyarray(v)
-                if hasattr(v, "blocks") or (
-                    a.ndim >= 1 and a.nbytes > ROWS_BYTES and a.flags.c_contiguous
-                ):
-                    _write_blocks(f, a if hasattr(v, "blocks") else _Rows(a))
-                else:
-                    np.lib.format.write_array(f, a, allow_pickle=False)
+                _write_member(f, v)
+
+
+def _write_member(f, v) -> None:
+    """One ``.npy`` member: a value with ``blocks()`` and an array over :data:`ROWS_BYTES`
+    a block at a time, any other array as ``numpy`` writes it (the same bytes)."""
+    if hasattr(v, "blocks"):
+        _write_blocks(f, v)
+        return
+    a = np.asanyarray(v)
+    if a.ndim >= 1 and a.nbytes > ROWS_BYTES and a.flags.c_contiguous:
+        step = max(1, ROWS_BYTES // max(1, a[:1].nbytes))
+        _write_blocks(f, Chain((a[i : i + step] for i in range(0, len(a), step)), a.dtype))
+    else:
+        np.lib.format.write_array(f, a, allow_pickle=False)
 
 
 #: Arrays larger than this [bytes] are written a block of rows at a time (``write_array``
 #: copies up to 16 MB twice to write one into a compressed member).
 ROWS_BYTES = 1 << 20
-
-
-class _Rows:
-    """An array's ``blocks()`` of at most :data:`ROWS_BYTES` each, as a ``Frames`` gives."""
-
-    def __init__(self, a: np.ndarray):
-        self.a, self.dtype, self.shape = a, a.dtype, a.shape
-
-    def blocks(self):
-        step = max(1, ROWS_BYTES // max(1, self.a[:1].nbytes))
-        for i in range(0, len(self.a), step):
-            yield i, self.a[i : i + step]
 
 
 class Chain:

@@ -31,11 +31,16 @@ WRISTS = {"WR_R": "arm_R", "WR_L": "arm_L"}
 def frame_speeds(x: np.ndarray, fps: float) -> np.ndarray:
     """(T,) speed of each frame [unit/s]: the larger of the steps into and out of it, over
     the frame period, from positions ``x`` (T, ...) (norm over the rest of the axes)."""
-    step = np.zeros(len(x))
-    if len(x) > 1:
-        d = np.linalg.norm(np.diff(x, axis=0).reshape(len(x) - 1, -1), axis=1) * fps
-        step[1:] = d
-        step[:-1] = np.maximum(step[:-1], d)
+    if len(x) < 2:
+        return np.zeros(len(x))
+    return _larger_step(np.linalg.norm(np.diff(x, axis=0).reshape(len(x) - 1, -1), axis=1) * fps)
+
+
+def _larger_step(d: np.ndarray) -> np.ndarray:
+    """(T,) each frame's larger of its steps in and out, from the (T - 1,) steps ``d``."""
+    step = np.zeros(len(d) + 1)
+    step[1:] = d
+    step[:-1] = np.maximum(step[:-1], d)
     return step
 
 
@@ -72,15 +77,10 @@ def site_speeds(site_pos, sites: list[int], fps: float) -> list[np.ndarray]:
         if len(x) > 1:
             d.append(np.linalg.norm(np.diff(x, axis=0), axis=2) * fps)
         last = x[-1:]
-    steps = np.concatenate(d) if d else np.zeros((0, len(sites)))
-    out = []
-    for k in range(len(sites)):
-        step = np.zeros(n)
-        if n > 1:
-            step[1:] = steps[:, k]
-            step[:-1] = np.maximum(step[:-1], steps[:, k])
-        out.append(step)
-    return out
+    if n < 2:
+        return [np.zeros(n) for _ in sites]
+    steps = np.concatenate(d)
+    return [_larger_step(steps[:, k]) for k in range(len(sites))]
 
 
 def speed_findings(

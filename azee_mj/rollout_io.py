@@ -37,6 +37,7 @@ import zipfile
 
 import numpy as np
 
+from azee_mj import heap
 from azee_mj.errors import InputFileError, shorten
 from azee_mj.files import Chain, save_npz
 from azee_mj.frames import Frames, NpzFrames, nonfinite_frames
@@ -189,7 +190,11 @@ def save_rollout(path: str | os.PathLike, rollout: Rollout, inputs=(), options: 
         arrays |= dynamic_arrays(rollout)
     if options:
         arrays["options"] = np.array(options)
+    # what realizing freed given back before the file's buffers come, and those after:
+    # each stage of a long score reuses the memory of the one before
+    heap.release()
     save_npz(path, arrays, inputs)
+    heap.release()
 
 
 #: The longest options fingerprint :func:`rollout_options` reads [bytes].

@@ -211,6 +211,13 @@ def plot(path: Path, profiles: dict[str, dict]) -> None:
     fig.savefig(path, dpi=90)
 
 
+def plain(x):
+    """numpy scalars as JSON numbers (``json.dumps``'s ``default``)."""
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"{type(x).__name__} is not JSON serializable")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--label", help="write bench/results/motion-LABEL.json")
@@ -236,11 +243,11 @@ def main(argv=None) -> int:
         profiles[name] = prof
     out = {"machine": machine(), "summary": summary(recs), "rollouts": recs}
     print(table(recs))
-    print(json.dumps(out["summary"], indent=1))
+    print(json.dumps(out["summary"], indent=1, default=plain))
     if rows:
         print("\nkinematic / physics:\n" + PHYSICS_HEADER + "\n" + "\n".join(rows))
     stem = f"motion-{a.label}" if a.label else "motion"
-    (HERE / "results" / f"{stem}.json").write_text(json.dumps(out, indent=1) + "\n")
+    (HERE / "results" / f"{stem}.json").write_text(json.dumps(out, indent=1, default=plain) + "\n")
     if a.plot:
         plot(a.plot, profiles)
     return 0

@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from azee_mj.constraints import PENETRATION_LIMIT, Constraint
+from azee_mj.constraints import PENETRATION_LIMIT, Constraint, Place
 from azee_mj.contact import head_on, widened
 from azee_mj.kinematics import Kinematics, Names
 from azee_mj.natural import Effort, Naturalness
@@ -77,6 +77,9 @@ __all__ = [
 #: Weight of the guide toward the preferred posture while the constraints are being
 #: reached (per radian; a constraint row is 1 at its tolerance).
 POSTURE = 0.3
+#: The most a meet from a start over the whole joint ranges may break the problem's
+#: preferences (their sum of squares, 1 = one row at its tolerance) to be kept.
+WIDE_PREFERENCE = 1.0
 
 
 class Solver:
@@ -255,6 +258,15 @@ class Solver:
         end are tried head-on first (:func:`head_on_first`).
         """
         result = head_on_first(self._solve_once, problem, q0, self.preference_cost)
+        restarts = self.restarts if problem.restarts is None else problem.restarts
+        if not result.converged and problem.wide and restarts >= 2 and problem.collide:
+            wide = head_on_first(self._solve_wide, problem, q0, self.preference_cost)
+            if wide.converged:
+                result = dataclasses.replace(
+                    wide,
+                    iterations=wide.iterations + result.iterations,
+                    time=wide.time + result.time,
+                )
         if self.on_solve is not None:
             self.on_solve(problem, result)
         return result
@@ -267,8 +279,11 @@ class Solver:
         k = self.at(q, jacobians=True)
         return float(sum(np.sum(c.rows(k)[0] ** 2) for c in problem.preferences))
 
-    def _solve_once(self, problem: IKProblem, q0) -> tuple[IKResult, tuple[int, float]]:
-        """:meth:`solve` as posed, and the kept attempt's rank (see :class:`Attempt`)."""
+    def _solve_once(
+        self, problem: IKProblem, q0, wide: bool = False
+    ) -> tuple[IKResult, tuple[int, float]]:
+        """:meth:`solve` as posed, and the kept attempt's rank (see :class:`Attempt`);
+        ``wide``: from starts over the whole joint ranges only (see :meth:`_solve_wide`)."""
         t0 = time.perf_counter()
         q_start = np.clip(
             self.natural if q0 is None else np.asarray(q0, float), self.lower, self.upper
@@ -276,13 +291,16 @@ class Solver:
         plan = self.plan(problem)
         q_start = _narrow(plan, problem, q_start, self.upper)
         history: list[float] = []
-        # Every seed and the warm start, then restarts (inside the max_change box) until one
-        # meets everything; the best attempt by one cost is kept.
-        best, iters = self._first_attempts(plan, problem, q_start, history)
-        best, n_it, attempt = self._restarts(best, plan, problem, q_start, history)
-        iters += n_it
+        if wide:
+            best, iters, attempt = self._wide_attempts(plan, problem, q_start, history)
+        else:
+            # Every seed and the warm start, then restarts (inside the max_change box) until
+            # one meets everything; the best attempt by one cost is kept.
+            best, iters = self._first_attempts(plan, problem, q_start, history)
+            best, n_it, attempt = self._restarts(best, plan, problem, q_start, history)
+            iters += n_it
         restarts = self.restarts if problem.restarts is None else problem.restarts
-        if best.rank[0] and restarts >= 2:
+        if best.rank[0] and restarts >= 2 and not wide:
             # Nothing met everything: converge the best attempt fully (no early stop),
             # so that an infeasible problem gets its least residual (a per-frame solve,
             # with fewer restarts, keeps its step).
@@ -305,6 +323,34 @@ class Solver:
             polish=best.polish,
         )
         return result, best.rank
+
+    def _solve_wide(self, problem: IKProblem, q0) -> tuple[IKResult, tuple[int, float]]:
+        """:meth:`_solve_once` from starts with the limbs anywhere in their ranges, for a
+        problem that the seeds and restarts leave unmet: a hand behind the head or on the
+        nape lies in a basin that neither the natural posture nor the arm seeds reach."""
+        return self._solve_once(problem, q0, wide=True)
+
+    def _wide_attempts(self, plan, problem, q_start, history) -> tuple[Attempt, int, int]:
+        """(the best attempt, iterations, 0) from :func:`~azee_mj.posture.starts.wide_starts`
+        over the free limb joints (the dear ones, the spine and the clavicles, stay at the
+        start); only a meet that keeps the problem's preferences within
+        :data:`WIDE_PREFERENCE` counts. None when a placement's target moves with those
+        joints (the other hand): drawn with the placed hand, it would not hold still."""
+        best = Attempt(q_start, (1, np.inf), 0, None)
+        limbs = plan.free[self.dof_weight[plan.free] <= 1.0]
+        k = self.at(q_start, jacobians=True)
+        for c in problem.constraints:
+            jac = k.eval(c.target)[1] if isinstance(c, Place) else None
+            if jac is not None and np.abs(jac[:, limbs]).max(initial=0.0) > 0.0:
+                return best, 0, 0
+        points = starts.wide_starts(plan.lower, plan.upper, self.seed, q_start, limbs)
+        best, iters = starts.wide_search(
+            lambda q: self._attempt(q, plan, history),
+            best,
+            points,
+            lambda q: self.preference_cost(problem, q) <= WIDE_PREFERENCE,
+        )
+        return best, iters, 0
 
     def _first_attempts(self, plan, problem, q_start, history) -> tuple[Attempt, int]:
         """The best attempt from every seed and the warm start, and their iterations."""

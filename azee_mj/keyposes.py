@@ -189,9 +189,11 @@ class GroupPoser:
             + (prefs.upright if upright else ())
         )
 
-        def attempt(with_facing) -> GroupSolve:
+        def attempt(with_facing, wide=False) -> GroupSolve:
             both = tuple(cons) + tuple(with_facing)
-            res = ad.solve(both, free, q0, t0, seeds, preferences=where, restarts=restarts)
+            res = ad.solve(
+                both, free, q0, t0, seeds, preferences=where, restarts=restarts, wide=wide
+            )
             return GroupSolve(res, both, free)
 
         out = attempt(facing)
@@ -199,6 +201,10 @@ class GroupPoser:
             out = self.join_in_front(out, attempt(widened(facing)), cons)
         if facing and not out.converged:
             out = self.drop_facing(out, attempt(()), facing, q0, t0)
+        if not out.converged:
+            # Missed with and without facing: the limbs started anywhere (a last resort).
+            wide = attempt(facing, wide=True)
+            out = wide if wide.converged else out
         return out
 
     def join_in_front(self, faced: GroupSolve, wide: GroupSolve, cons) -> GroupSolve:

@@ -345,6 +345,11 @@ HELD_OUT = (
         (place("@I_TIP(w)", "@ST(w)"),),
     ),
     ("spread-middle-on-thumb", "fingers", {"fingers_spread": 1.0}, None, "@M_TIP(s)", "@T_TIP(s)"),
+    # -- the fourth round of issue 26: written and measured before its changes, of the kinds
+    # it worked on (a pad on the throat and under the chin, fingertips on the skull)
+    ("thumb-pad-throat", "face", THUMB, None, "@T_PAD(s)", "@NK"),
+    ("index-pad-under-chin", "face", INDEX, None, "@I_PAD(s)", "@CH"),
+    ("fingertips-top-of-head", "face", FLAT, None, "@M_TIP(s)", "@HEAD"),
 )
 #: Contacts no arm makes face to face within human joint ranges, run beside the suite for
 #: the realizer's reason and not counted in it: the back of the fist on the front of the

@@ -89,3 +89,60 @@ def test_hands_join_in_front_not_behind_the_back(solver, model):
     assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
     for arm in (e.rula.left, e.rula.right):
         assert arm.elbow_flexion > 60 * DEG, f"elbow {arm.side} {arm.elbow_flexion / DEG:.0f} deg"
+
+
+def end_gap(model, d, site, body):
+    """How far [m] site ``site`` lies from the surface of ``body``'s capsule (the round end
+    of a finger): 0 where the finger's skin touches it."""
+    g = next(
+        g
+        for g in range(model.ngeom)
+        if model.geom_bodyid[g] == model.body(body).id and model.geom_type[g] == 3
+    )
+    axis = d.geom_xmat[g].reshape(3, 3)[:, 2]
+    half, radius = model.geom_size[g][1], model.geom_size[g][0]
+    p = d.site(site).xpos - d.geom_xpos[g]
+    t = np.clip(p @ axis, -half, half)
+    return abs(float(np.linalg.norm(p - t * axis)) - radius)
+
+
+@pytest.mark.parametrize(
+    "at, skin",
+    [
+        # behind the neck and the skull, where no arm seed begins: 4.85 and 15.9 mm short
+        # before the starts over the whole joint ranges (``IKProblem.wide``)
+        pytest.param("NAPE", "neck", id="fingertips-nape-R"),
+        pytest.param("BEB", "head", id="fingertips-back-of-head-R"),
+    ],
+)
+def test_fingertips_reach_behind_the_neck_and_the_head(solver, model, at, skin):
+    held = held_posture(solver, "@M_TIP(s)", f"@{at}", FLAT)
+    d = mujoco.MjData(model)
+    d.qpos[:] = held
+    mujoco.mj_forward(model, d)
+    # the middle finger's round end touches the site: its skin within 1 mm of it, and no
+    # deeper into the neck or the head than the contact allowance
+    assert end_gap(model, d, at, "middle_R_3") < 1e-3
+    hand = {
+        b
+        for b in range(model.nbody)
+        if model.body(b).name.endswith("_R")
+        and (
+            model.body(b).name.split("_")[0]
+            in ("palm", "thumb", "index", "middle", "ring", "little")
+        )
+    }
+    depth = max(
+        (
+            -c.dist
+            for c in d.contact[: d.ncon]
+            if {model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]} & hand
+            and model.body(skin).id in (model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2])
+        ),
+        default=0.0,
+    )
+    assert depth <= 0.5e-3, f"{depth * 1e3:.2f} mm into the {skin}"
+    e = ergonomics(model, held)
+    assert e.trunk_angle < 10 * DEG and e.head_angle < 15 * DEG
+    assert e.elbows_ok(), f"elbow {e.right.elbow_above_shoulder * 1e3:.0f} mm above the shoulder"
+    assert e.rula.score <= 4

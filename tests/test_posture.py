@@ -118,6 +118,39 @@ def test_generic_starts_stay_in_range_and_keep_the_untouched_dofs():
         assert np.all(q >= lo) and np.all(q <= hi) and q[2] == 0.5
 
 
+def test_wide_starts_cover_the_whole_ranges_of_the_drawn_dofs_only():
+    lo, hi = np.array([-4.0, -1.0, 0.0]), np.array([4.0, 1.0, 2.0])
+    q_start = np.array([0.5, 0.5, 0.5])
+    gen = starts.wide_starts(lo, hi, 0, q_start, np.array([0, 1]))
+    qs = np.array([next(gen) for _ in range(200)])
+    assert np.all(qs[:, 2] == 0.5)
+    assert np.all(np.abs(qs[:, 0]) <= np.pi) and np.all(np.abs(qs[:, 1]) <= 1.0)
+    # uniform over the range, not drawn toward the start: both ends are reached
+    assert qs[:, 0].min() < -2.5 and qs[:, 0].max() > 2.5
+    again = starts.wide_starts(lo, hi, 0, q_start, np.array([0, 1]))
+    np.testing.assert_array_equal(next(again), qs[0])  # seeded per draw
+
+
+def test_wide_search_keeps_only_natural_meets_and_stops_a_few_after_the_first():
+    from azee_mj.posture.problem import Attempt
+
+    tried = []
+
+    def attempt(q):
+        tried.append(float(q[0]))
+        meets = q[0] >= 3.0
+        return Attempt(q, (0, 10.0 - q[0]) if meets else (1, 5.0), 1, None)
+
+    miss = Attempt(np.zeros(1), (1, 9.0), 0, None)
+    points = iter([np.array([float(k)]) for k in range(40)])
+    best, iters = starts.wide_search(attempt, miss, points, natural=lambda q: q[0] != 4.0)
+    # 3 is the first meet; WIDE_AFTER_MEET more; 4 meets but is rejected
+    assert tried == [float(k) for k in range(4 + starts.WIDE_AFTER_MEET)]
+    assert float(best.q[0]) == 3.0 + starts.WIDE_AFTER_MEET and iters == len(tried)
+    none = starts.wide_search(attempt, miss, iter([np.zeros(1)] * 40), natural=bool)
+    assert none[0] is miss and none[1] == starts.WIDE_STARTS
+
+
 def test_moving_pairs_drop_the_pairs_no_free_dof_moves(solver):
     m = solver.model
     free = solver.free_dofs(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))

@@ -28,6 +28,7 @@ Units: metres, radians, seconds.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Iterable, Mapping
 
@@ -258,15 +259,7 @@ class Solver:
         end are tried head-on first (:func:`head_on_first`).
         """
         result = head_on_first(self._solve_once, problem, q0, self.preference_cost)
-        restarts = self.restarts if problem.restarts is None else problem.restarts
-        if not result.converged and problem.wide and restarts >= 2 and problem.collide:
-            wide = head_on_first(self._solve_wide, problem, q0, self.preference_cost)
-            if wide.converged:
-                result = dataclasses.replace(
-                    wide,
-                    iterations=wide.iterations + result.iterations,
-                    time=wide.time + result.time,
-                )
+        result = _last_resort(self, problem, q0, result)
         if self.on_solve is not None:
             self.on_solve(problem, result)
         return result
@@ -283,7 +276,8 @@ class Solver:
         self, problem: IKProblem, q0, wide: bool = False
     ) -> tuple[IKResult, tuple[int, float]]:
         """:meth:`solve` as posed, and the kept attempt's rank (see :class:`Attempt`);
-        ``wide``: from starts over the whole joint ranges only (see :meth:`_solve_wide`)."""
+        ``wide``: from starts with the limbs anywhere in their ranges only (see
+        :func:`_last_resort`)."""
         t0 = time.perf_counter()
         q_start = np.clip(
             self.natural if q0 is None else np.asarray(q0, float), self.lower, self.upper
@@ -292,7 +286,7 @@ class Solver:
         q_start = _narrow(plan, problem, q_start, self.upper)
         history: list[float] = []
         if wide:
-            best, iters, attempt = self._wide_attempts(plan, problem, q_start, history)
+            best, iters, attempt = _wide_attempts(self, plan, problem, q_start, history)
         else:
             # Every seed and the warm start, then restarts (inside the max_change box) until
             # one meets everything; the best attempt by one cost is kept.
@@ -323,34 +317,6 @@ class Solver:
             polish=best.polish,
         )
         return result, best.rank
-
-    def _solve_wide(self, problem: IKProblem, q0) -> tuple[IKResult, tuple[int, float]]:
-        """:meth:`_solve_once` from starts with the limbs anywhere in their ranges, for a
-        problem that the seeds and restarts leave unmet: a hand behind the head or on the
-        nape lies in a basin that neither the natural posture nor the arm seeds reach."""
-        return self._solve_once(problem, q0, wide=True)
-
-    def _wide_attempts(self, plan, problem, q_start, history) -> tuple[Attempt, int, int]:
-        """(the best attempt, iterations, 0) from :func:`~azee_mj.posture.starts.wide_starts`
-        over the free limb joints (the dear ones, the spine and the clavicles, stay at the
-        start); only a meet that keeps the problem's preferences within
-        :data:`WIDE_PREFERENCE` counts. None when a placement's target moves with those
-        joints (the other hand): drawn with the placed hand, it would not hold still."""
-        best = Attempt(q_start, (1, np.inf), 0, None)
-        limbs = plan.free[self.dof_weight[plan.free] <= 1.0]
-        k = self.at(q_start, jacobians=True)
-        for c in problem.constraints:
-            jac = k.eval(c.target)[1] if isinstance(c, Place) else None
-            if jac is not None and np.abs(jac[:, limbs]).max(initial=0.0) > 0.0:
-                return best, 0, 0
-        points = starts.wide_starts(plan.lower, plan.upper, self.seed, q_start, limbs)
-        best, iters = starts.wide_search(
-            lambda q: self._attempt(q, plan, history),
-            best,
-            points,
-            lambda q: self.preference_cost(problem, q) <= WIDE_PREFERENCE,
-        )
-        return best, iters, 0
 
     def _first_attempts(self, plan, problem, q_start, history) -> tuple[Attempt, int]:
         """The best attempt from every seed and the warm start, and their iterations."""
@@ -457,6 +423,46 @@ def head_on_first(solve_once, problem: IKProblem, q0, preference_cost=None) -> I
         if pb > max(2.0 * pa, pa + 1.0):
             kept = a  # of two misses, the one that keeps the posture natural
     return dataclasses.replace(kept, iterations=a.iterations + b.iterations, time=a.time + b.time)
+
+
+def _last_resort(solver: Solver, problem: IKProblem, q0, result: IKResult) -> IKResult:
+    """``result``, or when it misses and ``problem.wide`` asks for it (a key posture's last
+    resort), the solve from starts with the limbs anywhere in their ranges if that meets:
+    a hand behind the head or on the nape lies in a basin that neither the natural posture
+    nor the arm seeds reach."""
+    restarts = solver.restarts if problem.restarts is None else problem.restarts
+    if result.converged or not problem.wide or restarts < 2 or not problem.collide:
+        return result
+    solve_wide = functools.partial(solver._solve_once, wide=True)
+    wide = head_on_first(solve_wide, problem, q0, solver.preference_cost)
+    if not wide.converged:
+        return result
+    return dataclasses.replace(
+        wide, iterations=wide.iterations + result.iterations, time=wide.time + result.time
+    )
+
+
+def _wide_attempts(solver: Solver, plan, problem, q_start, history) -> tuple[Attempt, int, int]:
+    """(the best attempt, iterations, 0) from :func:`~azee_mj.posture.starts.wide_starts`
+    over the free limb joints (weight 1: the dear ones, the spine and the clavicles, stay
+    at the start); only a meet that keeps the problem's preferences within
+    :data:`WIDE_PREFERENCE` counts. None when a placement's target moves with those
+    joints (the other hand): drawn with the placed hand, it would not hold still."""
+    best = Attempt(q_start, (1, np.inf), 0, None)
+    limbs = plan.free[solver.dof_weight[plan.free] <= 1.0]
+    k = solver.at(q_start, jacobians=True)
+    for c in problem.constraints:
+        jac = k.eval(c.target)[1] if isinstance(c, Place) else None
+        if jac is not None and np.abs(jac[:, limbs]).max(initial=0.0) > 0.0:
+            return best, 0, 0
+    points = starts.wide_starts(plan.lower, plan.upper, solver.seed, q_start, limbs)
+    best, iters = starts.wide_search(
+        lambda q: solver._attempt(q, plan, history),
+        best,
+        points,
+        lambda q: solver.preference_cost(problem, q) <= WIDE_PREFERENCE,
+    )
+    return best, iters, 0
 
 
 def _narrow(plan: Plan, problem: IKProblem, q_start: np.ndarray, upper: np.ndarray) -> np.ndarray:

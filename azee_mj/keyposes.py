@@ -305,13 +305,27 @@ class KeyPoser:
             self._holds = holds, IntervalIndex((h.start, h.end) for h in holds)
         holds, holds_at = self._holds
         for h in (holds[i] for i in holds_at.at(t0)):
-            at = sched.by_path[h.hold_of].end
-            for t in sched.held_tracks(h) - held:
+            block = sched.by_path[h.hold_of]
+            at = block.end
+            for t in (sched.held_tracks(h) | self.recruited(keys, block)) - held:
                 q = self.posture_at(keys[t], at)  # keys' postures are never changed
                 self.take(state, (t,), q)
                 keys[t].append(Key(t0, t1, q, (), sched.track_joints[t]))
                 held.add(t)
         return held
+
+    def recruited(self, keys, block: sc.Block) -> set[str]:
+        """The trunk and head tracks (:data:`RELAXING`) whose last key before ``block``
+        ends was solved inside it, for its constraints: recruited to reach them, they are
+        part of the posture a hold of ``block`` keeps (relaxing them during the hold would
+        move the held hands; they relax with the next movement instead)."""
+        out = set()
+        for t in RELAXING:
+            i = bisect.bisect_left(keys.get(t, ()), block.end - EPS, key=lambda k: k.start)
+            k = keys[t][i - 1] if i else None
+            if k is not None and k.cons and not k.relax and k.start >= block.start - EPS:
+                out.add(t)
+        return out
 
     def posture_at(self, keys: list[Key], t: float) -> np.ndarray:
         """The posture of the last of a track's ``keys`` starting before time ``t`` [s]

@@ -95,8 +95,18 @@ BELL_SPARC = -1.42
 #: How far [m] a site of a paced frame may be from its path (the polyline of its frames)
 #: where the joints between two frames were interpolated.
 RESAMPLE_TOL = 2e-3
+#: Tracks that carry the arms: one moving only within an arm's movement is paced with it
+#: (the wrist moves with both).
+CARRIERS = ("spine",)
+#: Samples a frame of a path paced again when its frames alone are too coarse: the path
+#: between two frames is the straight line of the joints, which a site follows bowed.
+SUBSTEPS = 4
 #: Most of a paced movement's frames that may be pushed out of the body one by one.
 MAX_PUSHED = 0.5
+#: How much faster than a minimum-jerk bell along its own path a site of a paced movement
+#: may peak (where it peaks faster than the frames did): the joints' turns and the power
+#: law share the bell with the sites.
+BELL_MARGIN = 1.1
 #: Keyframes the flattened mode puts along a transpath (the 2018 method).
 FLAT_PATH_KEYS = 6
 
@@ -146,31 +156,49 @@ class Pacer:
         two-thirds power law). The arm's hand track goes with it; two arms moving over the
         same frames go together (a two-handed sign), by their summed path. Only the
         frames not ``held`` (T,) under a constraint are smoothed (in place)."""
-        sched, solver = self.schedule, self.adapter.solver
-        curved, (ends, limbs) = self.curved_paths(), self.path_ends(times)
+        sched = self.schedule
         runs = []
         for ti, t in enumerate(names):
             side = t.removeprefix("arm_")
             site = sched.smap.sites.get(f"WR_{side}") if t.startswith("arm_") else None
             if site is not None:
                 runs += [(a, b, t, side, site) for a, b in runs_of(moving[:, ti])]
+        paths = self.curved_paths(), *self.path_ends(times)  # worked out once
+        trunk = [
+            (a, b, t)
+            for ti, t in enumerate(names)
+            if t in CARRIERS
+            for a, b in runs_of(moving[:, ti])
+        ]
         for group in coupled(runs):
-            a, b = group[0][0], group[0][1]
-            tracks = [t for r in group for t in (r[2], f"hand_{r[3]}") if t in sched.track_dofs]
-            span = times[a], times[b]
-            along = [
-                s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1
-            ]
-            sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
-            within = range(bisect.bisect_right(ends, a), bisect.bisect_left(ends, b))
-            pins = [ends[i] - a for i in within if limbs[i] & set(tracks)]
-            keep = np.flatnonzero(held[a : b + 1]).tolist()
-            new = self.paced_run(
-                q[a : b + 1], times[a : b + 1], tracks, sids, bool(along), pins, keep
-            )
-            if new is not None:
-                q[a : b + 1, self.dofs(tracks)] = new
+            # a trunk that moves only within the arms' movement is retimed with them
+            carried = [t for a, b, t in trunk if group[0][0] <= a and b <= group[0][1]]
+            if not self.pace_group(q, times, group, held, paths, carried) and len(group) > 1:
+                for r in group:  # the arms on their own times (each keeps its path)
+                    self.pace_group(q, times, [r], held, paths)
         return q
+
+    def pace_group(self, q, times, group, held, paths, carried=()) -> bool:
+        """The movement of the arms of ``group`` (runs ``(a, b, arm track, side, wrist
+        site)`` over the same frames of ``q`` at ``times``) paced by their summed path
+        (in place, but the frames ``held`` under a constraint not smoothed), the tracks
+        ``carried`` (a trunk moving within it) with them; whether it was. ``paths``:
+        :meth:`curved_paths` and :meth:`path_ends`' two lists."""
+        sched, solver = self.schedule, self.adapter.solver
+        curved, ends, limbs = paths
+        a, b = group[0][0], group[0][1]
+        tracks = [t for r in group for t in (r[2], f"hand_{r[3]}") if t in sched.track_dofs]
+        tracks += list(carried)
+        span = times[a], times[b]
+        along = [s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1]
+        sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
+        within = range(bisect.bisect_right(ends, a), bisect.bisect_left(ends, b))
+        pins = [ends[i] - a for i in within if limbs[i] & set(tracks)]
+        keep = np.flatnonzero(held[a : b + 1]).tolist()
+        new = self.paced_run(q[a : b + 1], times[a : b + 1], tracks, sids, bool(along), pins, keep)
+        if new is not None:
+            q[a : b + 1, self.dofs(tracks)] = new
+        return new is not None
 
     def paced_run(self, run, times, tracks, sids, law: bool, pins=(), kept=()):
         """The joints of ``tracks`` in one movement's frames ``run`` (n, nq) at ``times``
@@ -187,35 +215,50 @@ class Pacer:
         d = ad.dofs(joints)
         at_run = np.array([ad.at(x).d.site_xpos[sids] for x in run])
         score = self.smoothness(at_run)
-        if score >= BELL_SPARC and not law:
+        if score >= BELL_SPARC and not law and self.peaks(at_run) <= 1:
             return None  # one bell already
         fastest = max(np.abs(np.diff(run[:, d], axis=0)).max(), BRANCH_SPEED / self.fps)
         kept, pins = sorted(set(pins) | set(kept)), sorted(set(pins))
-        for passes in (SMOOTHING, 0):
+        for sub, passes in ((1, SMOOTHING), (1, 0), (SUBSTEPS, SMOOTHING), (SUBSTEPS, 0)):
             path = run.copy()
             path[:, d] = smoothed(run[:, d], passes)
             path[kept] = run[kept]  # held frames, where a transpath starts and ends
-            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path]) if passes else at_run
-            frames = paced(pts, pts[:, -1] if law else None, path[:, d], pins)
-            if frames is None:
+            if not self.retimed(path, d, sids, law, pins, sub, at_run if passes == 0 else None):
                 continue
-            path[:, d] = resample(path[:, d], frames)
             if np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
-            along = resample(pts.reshape(len(pts), -1), frames).reshape(pts.shape)
             pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
-            if np.linalg.norm(pts - along, axis=2).max() > RESAMPLE_TOL:
-                continue  # a joint swings between two frames: the sites leave their path
             if self.smoothness(pts) <= score:
                 continue  # pushing frames out would not make it smoother
             pts = self.pushed_out(path, times, joints, sids, run, kept)
             if pts is None or np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
-            if self.peak_speed(pts) > self.peak_speed(at_run) + 1e-9:
-                continue  # a push made a site faster than any frame of the movement was
+            if self.too_fast(pts, at_run):
+                continue  # a push made a site faster than the frames or a bell
             if self.smoothness(pts) > score:
                 return path[:, d]
         return None
+
+    def retimed(self, path, d, sids, law: bool, pins, sub: int, pts=None) -> bool:
+        """The dofs ``d`` of ``path`` (n, nq) paced along it (:func:`~azee_mj.pacing.paced`
+        by the sites ``sids``; ``law``, ``pins``: see :meth:`paced_run`), in place; whether
+        they were. The path between two frames is the straight line of the joints, sampled
+        ``sub`` times a frame (a site bows off the chord of a long step as its joints turn).
+        False when no bell fits or a site of a paced frame leaves the path by more than
+        :data:`RESAMPLE_TOL` (a joint swings between two samples). ``pts``: the sites at
+        ``path``'s frames when known."""
+        ad = self.adapter
+        fine = resample(path, np.linspace(0.0, len(path) - 1.0, (len(path) - 1) * sub + 1))
+        if pts is None or sub > 1:
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in fine])
+        frames = paced(pts, pts[:, -1] if law else None, fine[:, d], pins, sub)
+        if frames is None:
+            return False
+        whole = resample(fine, frames)  # every joint retimed: the sites' own path
+        path[:, d] = whole[:, d]
+        along = resample(pts.reshape(len(pts), -1), frames).reshape(len(path), *pts.shape[1:])
+        new = np.array([ad.at(x).d.site_xpos[sids] for x in whole])
+        return bool(np.linalg.norm(new - along, axis=2).max() <= RESAMPLE_TOL)
 
     def path_ends(self, times) -> tuple[list[int], list[set[str]]]:
         """The frames at ``times`` where the score's transpaths start or end, ascending,
@@ -230,9 +273,25 @@ class Pacer:
         ends.sort(key=lambda e: e[0])
         return [f for f, _ in ends], [limbs for _, limbs in ends]
 
-    def peak_speed(self, pts: np.ndarray) -> float:
-        """The fastest any site at ``pts`` (n, k, 3) moves [m/s]."""
-        return max(mv.speed(pts[:, j], self.fps).max() for j in range(pts.shape[1]))
+    def too_fast(self, pts: np.ndarray, before: np.ndarray) -> bool:
+        """Whether a site at ``pts`` (n, k, 3) moves faster than both the same site at
+        ``before`` (the frames as solved) and :data:`BELL_MARGIN` times the peak of a
+        minimum-jerk bell along its own path in the movement's time: a bell peaks higher
+        than a flattened profile of two humps over the same path, a push that jumps
+        higher still."""
+        duration = (len(pts) - 1) / self.fps
+        for j in range(pts.shape[1]):
+            length = float(np.linalg.norm(np.diff(pts[:, j], axis=0), axis=1).sum())
+            bell = BELL_MARGIN * MINJERK_PEAK * length / duration
+            fastest = max(float(mv.speed(before[:, j], self.fps).max()), bell)
+            if mv.speed(pts[:, j], self.fps).max() > fastest + 1e-9:
+                return True
+        return False
+
+    def peaks(self, pts: np.ndarray) -> int:
+        """The most speed peaks (:func:`~azee_mj.movement.speed_peaks`) of any site at
+        ``pts`` (n, k, 3)."""
+        return max(mv.speed_peaks(mv.speed(pts[:, j], self.fps)) for j in range(pts.shape[1]))
 
     def smoothness(self, pts: np.ndarray) -> float:
         """SPARC of the summed speed of sites at ``pts`` (n, k, 3), one a frame."""
@@ -269,7 +328,7 @@ class Pacer:
                 return None
         for i in bad:
             soft = ad.soft_targets(path[i], joints)
-            limit = max(cn.COLLISION_TOL, depth(run[i], times[i]))
+            limit = max(cn.PENETRATION_LIMIT, depth(run[i], times[i]))
             path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos
             if depth(path[i], times[i]) > limit:
                 return None

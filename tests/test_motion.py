@@ -149,3 +149,21 @@ def test_a_two_handed_transition_is_paced_into_one_bell_and_keeps_its_holds(solv
     for tr in r.traces:
         if tr.block.endswith(("NICHT.GROUND", "NICHT.TRUNK", "HANDS_CONTACT")):
             assert np.all(np.asarray(tr.active) <= tr.tol), tr.block
+
+
+def test_a_hold_keeps_the_trunk_and_the_next_movement_is_one_bell(solver):
+    """info-about holds its topic (TOPIC_HOLD, 0.9 to 1.2 s of the score) with the trunk
+    the topic recruited; the trunk used to relax during the hold, so the held strong wrist
+    drifted, then moved again to the first key (K1 at 1.5 s): one movement with two speed
+    peaks. The trunk now stays still through the hold and relaxes with the arm's next
+    movement: one bell."""
+    score = load_score(Path(__file__).parents[1] / "examples" / "info-about.json")
+    r = timeline.realize(score, solver=solver)
+    spine = [solver.model.joint(j).qposadr[0] for j in DEFAULT_MAP.tracks["spine"]]
+    held = (r.time >= r.score_start + 0.9 - 1e-9) & (r.time < r.score_start + 1.2 - 1e-6)
+    assert np.abs(np.diff(r.qpos[held][:, spine], axis=0)).max() < 1e-9
+    t0, t1 = r.score_start + 0.9, r.score_start + 1.5
+    moves = [m for m, a, b in _wrist_moves(r, "WR_R") if a < t1 and b > t0]
+    assert len(moves) == 1 and moves[0].peaks == 1
+    # it starts when the hold ends
+    assert r.time[moves[0].first] >= r.score_start + 1.2 - 0.04

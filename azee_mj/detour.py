@@ -98,6 +98,9 @@ class Detour:
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
             new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
+            if new is None or np.array_equal(new, q[a : b + 1, d]):
+                # not bent: its deepest frames next to an end, where progress is slow
+                new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints, timed=True)
             if new is not None and not self.rushed(q[a : b + 1], new, d, t, times):
                 q[a : b + 1, d] = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
                 self.bent.append((t, a, b))

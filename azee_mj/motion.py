@@ -328,7 +328,7 @@ class Pacer:
                 return None
         for i in bad:
             soft = ad.soft_targets(path[i], joints)
-            limit = max(cn.PENETRATION_LIMIT, depth(run[i], times[i]))
+            limit = max(cn.COLLISION_TOL, depth(run[i], times[i]))
             path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos
             if depth(path[i], times[i]) > limit:
                 return None

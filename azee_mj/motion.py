@@ -95,12 +95,6 @@ BELL_SPARC = -1.42
 #: How far [m] a site of a paced frame may be from its path (the polyline of its frames)
 #: where the joints between two frames were interpolated.
 RESAMPLE_TOL = 2e-3
-#: Tracks that carry the arms: one moving only within an arm's movement is paced with it
-#: (the wrist moves with both).
-CARRIERS = ("spine",)
-#: Samples a frame of a path paced again when its frames alone are too coarse: the path
-#: between two frames is the straight line of the joints, which a site follows bowed.
-SUBSTEPS = 4
 #: Most of a paced movement's frames that may be pushed out of the body one by one.
 MAX_PUSHED = 0.5
 #: How much faster than a minimum-jerk bell along its own path a site of a paced movement
@@ -164,31 +158,21 @@ class Pacer:
             if site is not None:
                 runs += [(a, b, t, side, site) for a, b in runs_of(moving[:, ti])]
         paths = self.curved_paths(), *self.path_ends(times)  # worked out once
-        trunk = [
-            (a, b, t)
-            for ti, t in enumerate(names)
-            if t in CARRIERS
-            for a, b in runs_of(moving[:, ti])
-        ]
         for group in coupled(runs):
-            # a trunk that moves only within the arms' movement is retimed with them
-            carried = [t for a, b, t in trunk if group[0][0] <= a and b <= group[0][1]]
-            if not self.pace_group(q, times, group, held, paths, carried) and len(group) > 1:
+            if not self.pace_group(q, times, group, held, paths) and len(group) > 1:
                 for r in group:  # the arms on their own times (each keeps its path)
                     self.pace_group(q, times, [r], held, paths)
         return q
 
-    def pace_group(self, q, times, group, held, paths, carried=()) -> bool:
+    def pace_group(self, q, times, group, held, paths) -> bool:
         """The movement of the arms of ``group`` (runs ``(a, b, arm track, side, wrist
         site)`` over the same frames of ``q`` at ``times``) paced by their summed path
-        (in place, but the frames ``held`` under a constraint not smoothed), the tracks
-        ``carried`` (a trunk moving within it) with them; whether it was. ``paths``:
-        :meth:`curved_paths` and :meth:`path_ends`' two lists."""
+        (in place, but the frames ``held`` under a constraint not smoothed); whether it
+        was. ``paths``: :meth:`curved_paths` and :meth:`path_ends`' two lists."""
         sched, solver = self.schedule, self.adapter.solver
         curved, ends, limbs = paths
         a, b = group[0][0], group[0][1]
         tracks = [t for r in group for t in (r[2], f"hand_{r[3]}") if t in sched.track_dofs]
-        tracks += list(carried)
         span = times[a], times[b]
         along = [s for t0, t1, arm, s in curved if arm in tracks and t0 < span[1] and span[0] < t1]
         sids = [solver.site_id(r[4]) for r in group] + [solver.site_id(s) for s in along[:1]]
@@ -219,11 +203,11 @@ class Pacer:
             return None  # one bell already
         fastest = max(np.abs(np.diff(run[:, d], axis=0)).max(), BRANCH_SPEED / self.fps)
         kept, pins = sorted(set(pins) | set(kept)), sorted(set(pins))
-        for sub, passes in ((1, SMOOTHING), (1, 0), (SUBSTEPS, SMOOTHING), (SUBSTEPS, 0)):
+        for passes in (SMOOTHING, 0):
             path = run.copy()
             path[:, d] = smoothed(run[:, d], passes)
             path[kept] = run[kept]  # held frames, where a transpath starts and ends
-            if not self.retimed(path, d, sids, law, pins, sub, at_run if passes == 0 else None):
+            if not self.retimed(path, d, sids, law, pins, None if passes else at_run):
                 continue
             if np.abs(np.diff(path[:, d], axis=0)).max() > fastest + 1e-9:
                 continue
@@ -239,24 +223,23 @@ class Pacer:
                 return path[:, d]
         return None
 
-    def retimed(self, path, d, sids, law: bool, pins, sub: int, pts=None) -> bool:
+    def retimed(self, path, d, sids, law: bool, pins, pts=None) -> bool:
         """The dofs ``d`` of ``path`` (n, nq) paced along it (:func:`~azee_mj.pacing.paced`
         by the sites ``sids``; ``law``, ``pins``: see :meth:`paced_run`), in place; whether
-        they were. The path between two frames is the straight line of the joints, sampled
-        ``sub`` times a frame (a site bows off the chord of a long step as its joints turn).
-        False when no bell fits or a site of a paced frame leaves the path by more than
-        :data:`RESAMPLE_TOL` (a joint swings between two samples). ``pts``: the sites at
+        they were. False when no bell fits, or when a site of a paced frame leaves the
+        polyline of the path's frames by more than :data:`RESAMPLE_TOL` (a joint swings
+        between two frames), measured with every joint paced alike: a trunk that moves on
+        its own time moves the sites too, but not off their path. ``pts``: the sites at
         ``path``'s frames when known."""
         ad = self.adapter
-        fine = resample(path, np.linspace(0.0, len(path) - 1.0, (len(path) - 1) * sub + 1))
-        if pts is None or sub > 1:
-            pts = np.array([ad.at(x).d.site_xpos[sids] for x in fine])
-        frames = paced(pts, pts[:, -1] if law else None, fine[:, d], pins, sub)
+        if pts is None:
+            pts = np.array([ad.at(x).d.site_xpos[sids] for x in path])
+        frames = paced(pts, pts[:, -1] if law else None, path[:, d], pins)
         if frames is None:
             return False
-        whole = resample(fine, frames)  # every joint retimed: the sites' own path
+        whole = resample(path, frames)
         path[:, d] = whole[:, d]
-        along = resample(pts.reshape(len(pts), -1), frames).reshape(len(path), *pts.shape[1:])
+        along = resample(pts.reshape(len(pts), -1), frames).reshape(pts.shape)
         new = np.array([ad.at(x).d.site_xpos[sids] for x in whole])
         return bool(np.linalg.norm(new - along, axis=2).max() <= RESAMPLE_TOL)
 

@@ -69,7 +69,6 @@ def paced(
     curve: np.ndarray | None = None,
     joints: np.ndarray | None = None,
     pins=(),
-    sub: int = 1,
 ) -> np.ndarray | None:
     """(n,) the fractional frame of a path to show at each of its n evenly timed frames
     (from a rest to a rest), so that the summed distance its sites travel (``points``
@@ -80,13 +79,10 @@ def paced(
     the sites hardly move (a hand turning about its wrist) is not rushed. ``pins``: inner
     frames that keep their time (where a transpath starts or ends), the bell bent
     smoothly to meet them. None when the sites hardly move, or the bell cannot meet the
-    pins going forward. ``sub``: the path is sampled ``sub`` times a frame (its n points
-    are ``(frames - 1) * sub + 1``; the pins are frames): the result is the fractional
-    point of the path at each frame."""
+    pins going forward."""
     points = np.asarray(points, float)
     n = len(points)
-    frames = (n - 1) // sub + 1
-    if frames < 3:
+    if n < 3:
         return None
     step = np.linalg.norm(np.diff(points, axis=0), axis=2).sum(axis=1)  # (n-1,)
     total = float(step.sum())
@@ -99,13 +95,13 @@ def paced(
     grid = np.linspace(s[0], s[-1], SAMPLES)
     w = np.ones(SAMPLES) if curve is None else distance_weight(np.asarray(curve), s, grid)
     sigma = np.r_[0.0, np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(grid))]
-    u = np.linspace(0.0, 1.0, frames)
+    u = np.linspace(0.0, 1.0, n)
     target = sigma[-1] * minjerk(u)
-    pins = sorted(p for p in set(pins) if 1 < p < frames - 2)  # next to an end: the end
+    pins = sorted(p for p in set(pins) if 1 < p < n - 2)  # next to an end: the end
     if pins:
         from scipy.interpolate import PchipInterpolator  # here: 50 MB a realization may not need
 
-        miss = np.interp(s[np.array(pins) * sub], grid, sigma) - target[pins]
+        miss = np.interp(s[pins], grid, sigma) - target[pins]
         target = target + PchipInterpolator(np.r_[0.0, u[pins], 1.0], np.r_[0.0, miss, 0.0])(u)
         if np.any(np.diff(target) < 0.0):
             return None

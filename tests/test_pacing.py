@@ -134,20 +134,3 @@ def test_resample_interpolates_rows():
     q = np.array([[0.0, 1.0], [2.0, 3.0], [4.0, 7.0]])
     out = pc.resample(q, np.array([0.0, 0.5, 1.25, 2.0]))
     assert np.allclose(out, [[0.0, 1.0], [1.0, 2.0], [2.5, 4.0], [4.0, 7.0]])
-
-
-def test_a_path_sampled_finer_than_its_frames_gives_a_point_a_frame():
-    """``sub`` samples a frame: the result has one fractional point of the fine path per
-    frame, a pin is a frame (its point ``sub`` times further), and the frames shown are
-    one bell along the path as with the frames alone."""
-    sub, n = 4, 41
-    fine = line_with_a_stop((n - 1) * sub + 1)
-    frames = pc.paced(fine, sub=sub)
-    assert len(frames) == n and frames[0] == 0.0 and frames[-1] == len(fine) - 1
-    sp = mv.speed(shown(fine, frames)[:, 0], FS)
-    assert mv.speed_peaks(sp) == 1
-    assert mv.sparc(sp, FS) == pytest.approx(-1.40, abs=0.02)
-    coarse = pc.paced(line_with_a_stop(n))
-    np.testing.assert_allclose(shown(fine, frames), shown(line_with_a_stop(n), coarse), atol=2e-3)
-    pinned = pc.paced(fine, pins=[20], sub=sub)
-    assert pinned[20] == pytest.approx(20.0 * sub)

@@ -97,9 +97,12 @@ class Detour:
         for _, t, a, b in sorted(blends):
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
-            new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
+            depth = self.depths(q[a : b + 1], times[a : b + 1])
+            if not (depth[1:-1] > cn.COLLISION_TOL).any():
+                continue  # it stays out of the body
+            new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints, depth=depth)
             if new is None or np.array_equal(new, q[a : b + 1, d]):
-                # not bent: its deepest frames next to an end, where progress is slow
+                # not bent: its deepest frames next to an end, where its progress is slow
                 new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints, timed=True)
             if new is not None and not self.rushed(q[a : b + 1], new, d, t, times):
                 q[a : b + 1, d] = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
@@ -160,14 +163,14 @@ class Detour:
         )
 
     def bent_run(
-        self, run, times, d, joints, reach: float = REACH, timed: bool = False
+        self, run, times, d, joints, reach: float = REACH, timed: bool = False, depth=None
     ) -> np.ndarray | None:
         """The dofs ``d`` of the arm (``joints``) over the blend ``run`` (n, nq) at
         ``times`` bent around the body, or None: the blend stays out of it, or no bend
         found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
         via's offset; ``timed``: the bells over the frames' time, not the blend's
-        progress."""
-        depth = self.depths(run, times)
+        progress; ``depth``: :meth:`depths` of ``run`` when known."""
+        depth = self.depths(run, times) if depth is None else depth
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
         ad = self.adapter

@@ -388,19 +388,10 @@ class KeyPoser:
                     return kept
             out.append(s)
             self.take(state, g, s.qpos)
-        if self.elbows_up(out, state) - self.elbows_up(out, final):
+        up = self.groups.prefs.elbows_up
+        if any(up(s.cons, s.free, state) - up(s.cons, s.free, final) for s in out):
             return kept
         return alone[0], out
-
-    def elbows_up(self, solved: list[GroupSolve], q: np.ndarray) -> set[str]:
-        """The elbows (upper-arm bodies) that posture ``q`` raises above their shoulders
-        among those ``solved``'s placements prefer low (below the brows)."""
-        k, out = self.adapter.at(q, jacobians=True), set()
-        for s in solved:
-            for low in self.groups.prefs.elbows_low(s.cons, s.free, q):
-                if low.rows(k)[0][0] * low.tol > low.margin:
-                    out.add(low.ref)
-        return out
 
     def diagnose(self, s: GroupSolve, start: np.ndarray, t0: float) -> None:
         """Why solve ``s`` (from ``start`` at ``t0`` [s]) misses its constraints, into

@@ -379,17 +379,21 @@ class KeyPoser:
         met = all(s.converged for s in kept[1])
         if d is None or (met and np.abs(final[d] - home[d]).max() < SAME_POSTURE):
             return kept
+        unfaced = dict(self.groups.unfaced)  # the kept solve's, to say why it missed
         state, out, redo = before.copy(), [], False
         for g, s in zip(*alone):
             if not s.converged or redo:
                 s = self.groups.solve(g, items, state, keys, t0, reuse=False, branches=True)
                 redo = True
-                if not s.converged:
-                    return kept
             out.append(s)
+            if not s.converged:
+                break
             self.take(state, g, s.qpos)
         up = self.groups.prefs.elbows_up
-        if any(up(s.cons, s.free, state) - up(s.cons, s.free, final) for s in out):
+        if not all(s.converged for s in out) or any(
+            up(s.cons, s.free, state) - up(s.cons, s.free, final) for s in out
+        ):
+            self.groups.unfaced = unfaced
             return kept
         return alone[0], out
 
@@ -496,11 +500,9 @@ class KeyPoser:
         return kept
 
     def lean_together(self, recruited, state: np.ndarray, items, keys, t0: float):
-        """The ``recruited`` (groups, solves), met, with the trunk brought back toward
-        upright again, now with every group it carries but the hands' fingers solved
-        anew at each step: the other arm may move aside (two palms side by side on the
-        belly: the hand placed first is where the other must go at an upright trunk).
-        ``state`` is their posture. Returns ``recruited`` if the trunk leans no less."""
+        """The met ``recruited`` (groups, solves; posture ``state``) with the trunk brought
+        back toward upright, every arm it carries solved anew at each step: the other arm
+        may move aside (two palms on the belly). ``recruited`` if it leans no less."""
         groups, solved = recruited
         arms = [i for i, g in enumerate(groups) if needs_trunk(g)]
         union = set().union(*(groups[i] for i in arms))

@@ -87,6 +87,12 @@ def violation(res: ik.IKResult) -> float:
     )
 
 
+def needs_trunk(group: set[str]) -> bool:
+    """Whether the trunk (or another arm branch) can help ``group`` meet its constraints:
+    not a hand's fingers missing one another."""
+    return not all(t.startswith("hand") for t in group)
+
+
 def components(track_sets: list[set[str]]) -> list[set[str]]:
     """Connected components of tracks coupled by the given sets."""
     groups: list[set[str]] = []
@@ -149,6 +155,7 @@ class GroupPoser:
         reuse: bool = True,
         held: tuple[str, ...] = (),
         restarts: int | None = None,
+        branches: bool = False,
     ) -> GroupSolve:
         """Solve the constraints of ``items`` that drive tracks of ``group`` from posture
         ``state`` at segment start ``t0`` [s] (rule 2: placements first when a block starts
@@ -157,7 +164,8 @@ class GroupPoser:
         ``state``, and the solve continues from ``state`` (no placements-first start).
         ``upright``: the trunk was recruited; among the postures that meet the
         constraints, the one with the chest nearest upright is preferred. ``restarts``:
-        the solver's, if None."""
+        the solver's, if None. ``branches``: no two-bone arm starts, so that the solver's
+        restarts try each arm on its other elbow-swivel branches (its seeder)."""
         ad, prefs, anatomy = self.adapter, self.prefs, self.schedule.anatomy
         mine = [it for it in items if it.driven.tracks & group]
         cons = self.constraints(mine)
@@ -171,15 +179,19 @@ class GroupPoser:
         places = [c for c in cons if not isinstance(c, (cn.Orient, cn.Look))]
         # Also start each arm in its natural two-bone posture for its hand's target.
         facing = prefs.facing(cons)
-        seeds = reach.arm_seeds(
-            ad.solver,
-            anatomy.arms,
-            cons + facing,
-            free,
-            q0,
-            anatomy.hand_of,
-            prefs.meet,
-            anatomy.carried_by,
+        seeds = (
+            ()
+            if branches
+            else reach.arm_seeds(
+                ad.solver,
+                anatomy.arms,
+                cons + facing,
+                free,
+                q0,
+                anatomy.hand_of,
+                prefs.meet,
+                anatomy.carried_by,
+            )
         )
         if not held and len(places) < len(cons) and any(it.starts_now for it in mine) and places:
             q0 = ad.solve(places, free, q0, t0, seeds, natural=False).qpos
@@ -350,10 +362,11 @@ class KeyPoser:
             solved.append(self.groups.solve(g, items, state, keys, t0))
             self.take(state, g, solved[-1].qpos)
         if self.mode is Mode.MULTITRACK and any(
-            not s.converged and not all(t.startswith("hand") for t in g)
-            for g, s in zip(groups, solved)
-        ):  # a hand's fingers missing one another: leaning cannot help them
+            not s.converged and needs_trunk(g) for g, s in zip(groups, solved)
+        ):
+            alone = groups, solved
             groups, solved = self.recruit_trunk(groups, solved, items, before, keys, t0)
+            groups, solved = self.other_branches(alone, (groups, solved), items, before, keys, t0)
         for group, s in zip(groups, solved):
             if not s.converged:
                 free = self.diagnose_free.pop(id(s), s.free)
@@ -364,6 +377,39 @@ class KeyPoser:
                 if keys[t] and keys[t][-1].start == t0:
                     keys[t].pop()  # recruited after all: no return to neutral here
                 keys[t].append(Key(t0, t1, q, s.cons, s.free))
+
+    def other_branches(self, alone, kept, items, before: np.ndarray, keys, t0: float):
+        """A signer moves the arm another way before bending the trunk: when the solve
+        ``kept`` (groups, solves) leans or misses, the groups the limbs missed ``alone``
+        are solved again upright from their arms' other elbow-swivel branches (the groups
+        after them anew); that is kept if it meets everything and raises no elbow above
+        its shoulder that ``kept`` holds below it (the palm on the back of the head: the
+        elbow raised beside the head instead of a 20-degree bow; two palms on the cheeks
+        keep their elbows low, trunk upright)."""
+        d, home = self.schedule.track_dofs.get("spine"), self.schedule.home
+        final = before.copy()
+        for g, s in zip(*kept):
+            self.take(final, g, s.qpos)
+        met = all(s.converged for s in kept[1])
+        if d is None or (met and np.abs(final[d] - home[d]).max() < SAME_POSTURE):
+            return kept
+        unfaced = dict(self.groups.unfaced)  # the kept solve's, to say why it missed
+        state, out, redo = before.copy(), [], False
+        for g, s in zip(*alone):
+            if not s.converged or redo:
+                s = self.groups.solve(g, items, state, keys, t0, reuse=False, branches=True)
+                redo = True
+            out.append(s)
+            if not s.converged:
+                break
+            self.take(state, g, s.qpos)
+        up = self.groups.prefs.elbows_up
+        if not all(s.converged for s in out) or any(
+            up(s.cons, s.free, state) - up(s.cons, s.free, final) for s in out
+        ):
+            self.groups.unfaced = unfaced
+            return kept
+        return alone[0], out
 
     def diagnose(self, s: GroupSolve, start: np.ndarray, t0: float) -> None:
         """Why solve ``s`` (from ``start`` at ``t0`` [s]) misses its constraints, into
@@ -435,6 +481,8 @@ class KeyPoser:
             out.append(solve(g, items, state, keys, t0, reuse=False))
             self.take(state, g, out[-1].qpos)
         tries = [([helped, *met], out)]
+        if met and all(s.converged for s in out):
+            tries.insert(0, self.lean_together(tries[0], state, items, keys, t0))
         if met and not all(s.converged for s in out):
             group = set().union(*groups) | {"spine"}
             tries.append(([group], [solve(group, items, before, keys, t0, upright=True)]))
@@ -464,6 +512,22 @@ class KeyPoser:
             if not s.converged:
                 self.diagnose_free[id(s)] = s.free + tuple(j for j in spine if j not in s.free)
         return kept
+
+    def lean_together(self, recruited, state: np.ndarray, items, keys, t0: float):
+        """The met ``recruited`` (groups, solves; posture ``state``) with the trunk brought
+        back toward upright, every arm it carries solved anew at each step: the other arm
+        may move aside (two palms on the belly). ``recruited`` if it leans no less."""
+        groups, solved = recruited
+        arms = [i for i, g in enumerate(groups) if needs_trunk(g)]
+        union = set().union(*(groups[i] for i in arms))
+        cons = tuple(c for i in arms for c in solved[i].cons)
+        free = tuple(j for i in arms for j in solved[i].free)
+        whole = GroupSolve(dataclasses.replace(solved[0].result, qpos=state.copy()), cons, free)
+        best = self.lean_less(whole, union, items, keys, t0)
+        if best is whole:
+            return recruited  # no less lean found
+        rest = [i for i in range(len(groups)) if i not in arms]
+        return [union, *(groups[i] for i in rest)], [best, *(solved[i] for i in rest)]
 
     def lean_less(self, solved: GroupSolve, group: set[str], items, keys, t0: float):
         """Bring the trunk of a converged ``solved`` back toward neutral as far as the rest

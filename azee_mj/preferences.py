@@ -201,6 +201,13 @@ class Preferences:
                 out.append(natural.Below(arm.fore, arm.upper, margin, tol, "elbow low"))
         return tuple(out)
 
+    def elbows_up(self, cons, free, q: np.ndarray) -> set[str]:
+        """The upper arms (body names) whose elbow posture ``q`` raises above the shoulder
+        while :meth:`elbows_low` prefers it low."""
+        k = self.solver.at(q, jacobians=True)
+        low = self.elbows_low(cons, free, q)
+        return {b.ref for b in low if b.rows(k)[0][0] * b.tol > b.margin}
+
     def joined_behind(self, cons, q: np.ndarray) -> bool:
         """Whether a placement of ``cons`` that joins the two hands meets, in posture
         ``q``, behind the chest's frontal plane (the hands behind the back)."""

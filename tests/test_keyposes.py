@@ -7,6 +7,7 @@ import pytest
 from scores import cstr, envelope, shaped
 
 from azee_mj import ik
+from azee_mj.ergonomics import ergonomics
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import Active, GroupPoser, KeyPoser, components, violation
 from azee_mj.schedule import Mode, Schedule
@@ -100,6 +101,57 @@ def test_a_miss_does_not_bow_the_trunk(solver):
     for k in keys["spine"]:
         assert np.abs(k.q[d] - home[d]).max() <= np.deg2rad(5.0) + 1e-9
     assert poser.reasons  # the report still says why it missed
+
+
+def _flat_contacts(solver, *placements):
+    """The key postures of flat hands placed by ``placements`` ((site, at), ...) from 0.4 s
+    to 0.8 s, as bench/natural.py writes a contact, checked met: (poser, the posture of
+    every track's last key)."""
+    sides = "sw" if any("(w)" in a for a, _ in placements) else "s"
+    flat = [{"type": "morph", "id": "flat", "weight": 1.0, "side": s} for s in sides]
+    touch = [{"type": "place", "site": a, "at": b} for a, b in placements]
+    score = load_score(shaped(flat, 0.4, 0.8, *touch, names=("C", "S", "T")))
+    poser = KeyPoser(IKAdapter(Schedule(score, solver)), Mode.MULTITRACK)
+    keys = poser.key_postures()
+    q = poser.schedule.home.copy()
+    for track, d in poser.schedule.track_dofs.items():
+        if keys[track]:
+            q[d] = keys[track][-1].q[d]
+    k = solver.at(q)
+    for a, b in placements:
+        site, at = (
+            poser.schedule.smap.sites[x.strip("@").replace("(s)", "_R").replace("(w)", "_L")]
+            for x in (a, b)
+        )
+        gap = k.d.site_xpos[solver.site_id(site)] - k.d.site_xpos[solver.site_id(at)]
+        assert np.linalg.norm(gap) <= 1e-3, (a, b)
+    return poser, q
+
+
+def test_a_palm_on_the_back_of_the_head_raises_the_arm_instead_of_bowing(solver):
+    # the limbs alone miss from their two-bone starts; main met it with the trunk and the
+    # head 20 degrees from upright: another elbow branch meets it upright
+    poser, q = _flat_contacts(solver, ("@PA(s)", "@BEB"))
+    assert poser.reasons == {}
+    e = ergonomics(solver.model, q)
+    assert np.degrees(e.trunk_angle) <= 10.0 and np.degrees(e.head_angle) <= 15.0
+    assert e.elbows_ok()  # the hand is above the eyes: the raised elbow is allowed
+
+
+def test_two_palms_on_the_belly_lean_no_further_than_the_posture_limit(solver):
+    # the hand placed first lies where the other must go upright: the trunk helps, then
+    # comes back toward upright with both arms solved anew (main: 12 degrees)
+    poser, q = _flat_contacts(solver, ("@PA(s)", "@AB_R"), ("@PA(w)", "@AB_L"))
+    assert poser.reasons == {}
+    assert np.degrees(ergonomics(solver.model, q).trunk_angle) <= 10.0
+
+
+def test_two_palms_on_the_cheeks_keep_their_elbows_low(solver):
+    # another elbow branch meets them too, but with an elbow over its shoulder: not kept
+    _, q = _flat_contacts(solver, ("@PA(s)", "@CK_R"), ("@PA(w)", "@CK_L"))
+    e = ergonomics(solver.model, q)
+    assert e.elbows_ok() and max(e.right.elbow_above_shoulder, e.left.elbow_above_shoulder) < 0
+    assert np.degrees(e.trunk_angle) <= 10.0
 
 
 def test_joined_hands_with_an_oriented_palm_start_turned_as_asked(solver):

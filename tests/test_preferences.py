@@ -74,6 +74,20 @@ def test_elbows_low_below_the_eyes_only(prefs, solver):
     assert prefs.elbows_low([low], (), q) == ()  # the arm is not free
 
 
+def test_elbows_up_names_the_arms_raised_against_the_preference(prefs, solver):
+    q = solver.natural.copy()
+    eye_z = solver.at(q).d.site_xpos[solver.site_id("EYE_R")][2]
+    free = DEFAULT_MAP.tracks["arm_R"]
+    low = cn.Place("I_TIP_R", Const((0.3, -0.1, eye_z - 0.2)), 1e-3, "low")
+    high = cn.Place("I_TIP_R", Const((0.3, -0.1, eye_z + 0.1)), 1e-3, "high")
+    assert prefs.elbows_up([low], free, q) == set()  # hanging: the elbow is low
+    q[solver.model.jnt_qposadr[solver.joint_id("arm_R_abd")]] = np.radians(120.0)
+    d = solver.at(q).d
+    assert d.xpos[solver.body_id("f_arm_R")][2] > d.xpos[solver.body_id("arm_R")][2]
+    assert prefs.elbows_up([low], free, q) == {"arm_R"}
+    assert prefs.elbows_up([high], free, q) == set()  # a hand above the eyes may raise it
+
+
 def test_joined_behind_is_the_side_of_the_chest_plane(prefs, solver):
     joined = [cn.Place("I_TIP_R", SitePos("PA_L"), 1e-3, "j")]
     chest = DEFAULT_MAP.bones["back_2"]

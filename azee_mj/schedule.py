@@ -342,6 +342,7 @@ class Schedule:
         self.by_path = {b.path: b for b in self.blocks}
         self.contacts = self._contact_windows()
         self._contact_index: IntervalIndex | None = None
+        self._unions: dict[tuple[int, ...], frozenset[tuple[int, int]]] = {}
         self._moved_cache: dict = {}
         self._track_sets: dict[frozenset[str], frozenset[str]] = {}
         self.body_names = [
@@ -378,7 +379,11 @@ class Schedule:
         held = self._contact_index.at(t)
         if len(held) == 1:
             return self.contacts[held[0]].pairs
-        return frozenset().union(*(self.contacts[i].pairs for i in held))
+        key = tuple(held)
+        out = self._unions.get(key)
+        if out is None:  # one set per combination of contacts (its hash kept)
+            out = self._unions[key] = frozenset().union(*(self.contacts[i].pairs for i in held))
+        return out
 
     def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
         """What each constraint of a cstr block drives, in order."""

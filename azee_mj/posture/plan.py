@@ -135,6 +135,9 @@ class BlockCompiler:
     def blocks(self, c: Constraint) -> list[dict]:
         """Constraint ``c``'s blocks (a general form is one ``GENERIC`` block)."""
         s = self.s
+        if isinstance(c, JointTarget):  # most of a realization's constraints: first
+            qadr, dof, _ = s.joint_info(c.joint)
+            return [_block(JOINT, 1, id=qadr, dof=dof, value=float(c.value))]
         if isinstance(c, Place):
             flat = flat_point(c.target) if c.shift is None and not c.gap else None
             if flat is not None:
@@ -155,9 +158,6 @@ class BlockCompiler:
             if all(b is not None for b in eyes):
                 return eyes
             del self.terms[n_terms:]
-        elif isinstance(c, JointTarget):
-            qadr, dof, _ = s.joint_info(c.joint)
-            return [_block(JOINT, 1, id=qadr, dof=dof, value=float(c.value))]
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
         else:
@@ -178,6 +178,14 @@ def _records(dtype: np.dtype, rows: list[dict]) -> np.ndarray:
     """``rows`` (field -> value; missing fields zero) as records of ``dtype``."""
     zero = _zero_row(dtype)
     return np.array([tuple({**zero, **row}.values()) for row in rows], dtype)
+
+
+def _named(solver: Solver, c: Constraint) -> tuple[str, str]:
+    """Constraint ``c``'s kind (its class's name in lower case) and unit in a
+    :class:`~azee_mj.posture.problem.Residual`: "m" for a placement or a slide joint's
+    target, else "rad"."""
+    slide = isinstance(c, JointTarget) and solver.joint_info(c.joint)[2]
+    return type(c).__name__.lower(), "m" if isinstance(c, Place) or slide else "rad"
 
 
 class Plan:
@@ -233,26 +241,29 @@ class Plan:
 
     def _layout(self, solver: Solver, problem: IKProblem) -> tuple[np.ndarray, np.ndarray]:
         """The BLOCK and TERM records of the problem; sets ``items``, ``hard`` (row ranges
-        of the hard constraints), ``generic`` and ``inv`` (1 / tolerance per row)."""
+        of the hard constraints), ``generic``, ``inv`` (1 / tolerance per row) and
+        ``_named`` (each constraint's kind and unit, for :meth:`report`)."""
         compiler = BlockCompiler(solver)
         self.items: list[RowBlock] = []
         self.hard: list[tuple[int, int]] = []
         self.generic: list[tuple[Constraint, int, int]] = []
+        self._named: list[tuple[str, str]] = []
         inv: list[float] = []
         rows: list[dict] = []
         row = 0
         for c in problem.constraints:
             blocks = compiler.blocks(c)
-            k = sum(b["k"] for b in blocks)
+            k = blocks[0]["k"] if len(blocks) == 1 else sum(b["k"] for b in blocks)
             generic = blocks[0]["kind"] == GENERIC
             if generic:
                 self.generic.append((c, row, row + k))
             self.items.append(RowBlock(row, row + k, generic))
+            self._named.append(_named(solver, c))
             if not c.soft:
                 self.hard.append((row, row + k))
-            start = row
+            start, hard = row, 0 if c.soft else 1
             for b in blocks:
-                rows.append({**b, "start": start, "hard": 0 if c.soft else 1})
+                rows.append({**b, "start": start, "hard": hard})
                 start += b["k"]
             inv += [1.0 if generic else 1.0 / c.tol] * k
             row += k
@@ -369,13 +380,10 @@ class Plan:
         k = self.s.at(q, jacobians=True)
         self.core.rows()
         out = []
-        for c, it in zip(self.cons, self.items):
+        for c, it, (kind, unit) in zip(self.cons, self.items, self._named):
             if it.scaled:
                 value = c.residual(k)
             else:
                 value = residual_from_rows(c, self.r[it.start : it.stop])
-            unit = "rad"
-            if isinstance(c, Place) or isinstance(c, JointTarget) and self.s.joint_info(c.joint)[2]:
-                unit = "m"
-            out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
+            out.append(Residual(c.label, kind, value, c.tol, unit))
         return tuple(out), self.core.deepest(self.s.all_pairs)

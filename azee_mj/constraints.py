@@ -145,7 +145,7 @@ class Orient:
 
     def residual(self, k: Kinematics) -> float:
         a, _, v, _ = self._av(k, False)
-        c = float(np.clip(a @ v, -1.0, 1.0))
+        c = min(max(float(a @ v), -1.0), 1.0)  # np.clip's value, without its call cost
         return abs(np.arcsin(c)) if self.rel is Rel.PERP else float(np.arccos(c))
 
 

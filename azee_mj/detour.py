@@ -164,7 +164,8 @@ class Detour:
         found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
         via's offset; ``timed``: the bells over the frames' time, not the blend's
         progress."""
-        depth = self.depths(run, times)
+        allowed = [self.schedule.allowed_at(t) for t in times]  # the same at every bend
+        depth = self.depths(run, times, allowed)
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
         ad = self.adapter
@@ -172,7 +173,7 @@ class Detour:
         path, best, least = run.copy(), None, np.inf
         for k in range(BENDS):
             if k:
-                depth = self.depths(path, times)
+                depth = self.depths(path, times, allowed)
             if depth.max() < least:
                 best, least = path[:, d].copy(), depth.max()
             if least <= cn.COLLISION_TOL:
@@ -187,7 +188,7 @@ class Detour:
                 break  # the via is the frame itself: every further bend would be this one
             path[:, d] = bent
         else:
-            depth = self.depths(path, times)
+            depth = self.depths(path, times, allowed)
             if depth.max() < least:
                 best, least = path[:, d].copy(), depth.max()
         return best if least <= SHALLOW else None
@@ -199,17 +200,18 @@ class Detour:
         at = float(np.clip(s[m], EDGE, 1.0 - EDGE))
         return int(np.argmin(np.abs(s - at)))
 
-    def depths(self, run: np.ndarray, times: np.ndarray) -> np.ndarray:
+    def depths(self, run: np.ndarray, times: np.ndarray, allowed_at=None) -> np.ndarray:
         """(n,) how deep [m] each frame of ``run`` (n, nq) goes into the body (beyond what
         the contacts of its time allow) further than its keys (the first and last frames,
         weighed by how far it is from each): a hand leaving a contact (or reaching one)
-        may touch as its key does."""
-        sched = self.schedule
+        may touch as its key does. ``allowed_at``: the body pairs the contacts allow at
+        each of ``times`` when known (:meth:`~azee_mj.schedule.Schedule.allowed_at`)."""
+        if allowed_at is None:
+            allowed_at = [self.schedule.allowed_at(t) for t in times]
         s = np.linspace(0.0, 1.0, len(run))
         out = np.empty(len(run))
         keys: dict[frozenset, tuple[float, float]] = {}  # the keys' depths, per allowed set
-        for i, (x, t) in enumerate(zip(run, times)):
-            allowed = sched.allowed_at(t)
+        for i, (x, allowed) in enumerate(zip(run, allowed_at)):
             if allowed not in keys:
                 keys[allowed] = (self.depth(run[0], allowed), self.depth(run[-1], allowed))
             first, last = keys[allowed]

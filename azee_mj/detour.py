@@ -81,6 +81,7 @@ class Detour:
         self.adapter, self.schedule = adapter, adapter.schedule
         #: Blends bent, as ``(track, first frame, last frame)``.
         self.bent: list[tuple[str, int, int]] = []
+        self._speeds: dict[tuple, np.ndarray] = {}  # see wrist_path_speed
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
@@ -95,6 +96,7 @@ class Detour:
                     if b - a >= 4:
                         blends.append((-float(np.abs(q[b, d] - q[a, d]).sum()), t, a, b))
         for _, t, a, b in sorted(blends):
+            self._speeds = {}  # a blend's wrist speeds, asked again by its bends' tests
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
             new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints)
@@ -127,13 +129,19 @@ class Detour:
 
     def wrist_path_speed(self, frames, track: str, times) -> np.ndarray | None:
         """(n,) the speed [m/s] of arm ``track``'s wrist over postures ``frames`` (n, nq) at
-        ``times``; None if the signer has no such wrist or there is a single frame."""
+        ``times``; None if the signer has no such wrist or there is a single frame. Kept
+        for the blend being bent (read-only): its tests ask the same paths again."""
         site = self.schedule.smap.sites.get(f"WR_{track.removeprefix('arm_')}")
         if site is None or len(times) < 2:
             return None
-        sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
-        pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
-        return mv.speed(pos, fps)
+        key = (site, frames.tobytes(), times.tobytes())
+        speed = self._speeds.get(key)
+        if speed is None:
+            sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
+            pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
+            speed = self._speeds[key] = mv.speed(pos, fps)
+            speed.flags.writeable = False
+        return speed
 
     def wrist_speed(self, run, new, d, track: str, times) -> np.ndarray | None:
         """(n,) the speed [m/s] of arm ``track``'s wrist over ``run`` (n, nq) with its dofs

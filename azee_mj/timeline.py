@@ -148,9 +148,8 @@ def realize(
     adapter = IKAdapter(sched)
     poser = KeyPoser(adapter, mode)
     keys = poser.key_postures()
-    long = score.duration >= RELEASE_FROM
-    if long:
-        heap.release()  # the solves' scratch, freed among the keys that live on
+    release = heap.release if score.duration >= RELEASE_FROM else lambda: False
+    release()  # the solves' scratch, freed among the keys that live on
     n_key = len(adapter.results)
     tick(0.4)
     motion = Motion(adapter, mode, fps, rest, hold)
@@ -168,8 +167,7 @@ def realize(
     q, traces = held(motion, own, q, keys, flip, reasons, trilled)
     shift, results = motion.score_start, adapter.results
     del keys, poser, motion, adapter  # grown with the score, and not needed from here
-    if long:
-        heap.release()
+    release()
     traces = tuple(sorted(shaken + traces, key=order_of(own)))
     site_pos = site_positions(solver, smap, q)
     tick(1.0)

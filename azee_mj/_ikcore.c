@@ -408,6 +408,24 @@ cleanup:
   return out;
 }
 
+/* depth(model_addr, data_addr, allowed int32 (n, 2)) -> depth [m]: mj_collision on the
+   posture in data (its kinematics run), then the deepest penetration (>= 0) but between the
+   body pairs allowed (both orders listed). */
+static PyObject* mod_depth(PyObject* self, PyObject* args) {
+  (void)self;
+  unsigned long long ma, da;
+  PyObject* o;
+  if (!PyArg_ParseTuple(args, "KKO", &ma, &da, &o)) return NULL;
+  const mjModel* m = (const mjModel*)(uintptr_t)ma;
+  mjData* d = (mjData*)(uintptr_t)da;
+  Py_buffer B = {0};
+  if (get_buf(o, &B, 4, -1, "allowed", 0)) return NULL;
+  mj_collision(m, d);
+  double depth = contact_depth(m, d, B.buf, (int)(B.len / 8));
+  release(&B);
+  return PyFloat_FromDouble(depth);
+}
+
 /* {name: (sizeof, {field: offsetof})} of the records shared with Python. */
 #define FIELD(T, f) PyTuple_Pack(2, PyUnicode_FromString(#f), PyLong_FromSsize_t(offsetof(T, f)))
 static PyObject* record(Py_ssize_t size, PyObject* const* fields, int n) {
@@ -474,6 +492,8 @@ static PyTypeObject CoreType = {
 static PyMethodDef mod_methods[] = {
     {"effort", mod_effort, METH_VARARGS,
      "effort(model_addr, data_addr, edof, anc, cols) -> (tau, J): gravity torques."},
+    {"depth", mod_depth, METH_VARARGS,
+     "depth(model_addr, data_addr, allowed) -> the deepest penetration [m] after mj_collision."},
     {"layout", mod_layout, METH_NOARGS,
      "layout() -> {record: (sizeof, {field: offsetof})} of Block, Term and Tunables."},
     {NULL, NULL, 0, NULL}};

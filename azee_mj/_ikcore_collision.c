@@ -99,3 +99,18 @@ double deepest(const Core* s, const int32_t* pairs, int n) {
   }
   return depth;
 }
+
+/* The deepest penetration (>= 0) among the contacts mj_collision found in data (contacts
+   within the margin only are none), but for those between the bodies of one of the n pairs
+   allowed (b1, b2) (both orders listed): what contact_depth in constraints.py computes. */
+double contact_depth(const mjModel* m, const mjData* d, const int32_t* allowed, int n) {
+  double depth = 0.0;
+  for (int i = 0; i < d->ncon; i++) {
+    const mjContact* con = d->contact + i;
+    if (!(con->dist < 0.0) || !(-con->dist > depth)) continue;
+    int b1 = m->geom_bodyid[con->geom[0]], b2 = m->geom_bodyid[con->geom[1]], skip = 0;
+    for (int k = 0; k < n && !skip; k++) skip = allowed[2 * k] == b1 && allowed[2 * k + 1] == b2;
+    if (!skip) depth = -con->dist;
+  }
+  return depth;
+}

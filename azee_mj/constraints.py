@@ -27,11 +27,14 @@ Units: metres, radians.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from typing import ClassVar, Protocol
 
 import mujoco
 import numpy as np
 
+from azee_mj import native
 from azee_mj.kinematics import BodyAxis, BodyOrigin, Expr, Kinematics, Lin, Unit
 from azee_mj.score import Rel  # along / opp / perp: the score's own relation
 
@@ -102,10 +105,10 @@ class Place:
 
     def residual(self, k: Kinematics) -> float:
         d = k.d.site_xpos[k.names.site(self.site)] - k.eval(self.target, jac=False)[0]
-        plain = float(np.linalg.norm(d))
+        plain = math.sqrt(float(d @ d))  # np.linalg.norm's value, without its call cost
         if self.shift is not None:
             d = d + k.eval(self.shift, jac=False)[0]
-        n = float(np.linalg.norm(d))
+        n = math.sqrt(float(d @ d))
         return min(plain, abs(n - self.gap) if self.gap > 0.0 else n)
 
 
@@ -143,7 +146,7 @@ class Orient:
 
     def residual(self, k: Kinematics) -> float:
         a, _, v, _ = self._av(k, False)
-        c = float(np.clip(a @ v, -1.0, 1.0))
+        c = min(max(float(a @ v), -1.0), 1.0)  # np.clip's value, without its call cost
         return abs(np.arcsin(c)) if self.rel is Rel.PERP else float(np.arccos(c))
 
 
@@ -224,14 +227,14 @@ def penetration_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) 
 
 def contact_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> float:
     """:func:`penetration_depth` on a posture whose kinematics ``d`` holds already: runs
-    ``mj_collision`` only."""
-    mujoco.mj_collision(m, d)
-    n = d.ncon
-    if not n:
-        return 0.0
-    dist = d.contact.dist[:n]
-    deep = np.flatnonzero(dist < 0.0)  # contacts within the margin only are no penetration
-    if allowed and deep.size:
-        b = m.geom_bodyid[d.contact.geom[deep]]
-        deep = deep[[(x, y) not in allowed for x, y in b.tolist()]]
-    return float(-dist[deep].min()) if deep.size else 0.0
+    ``mj_collision``, then takes the deepest contact (``dist < 0``: those within the margin
+    only are no penetration) but between the body pairs ``allowed``, in the compiled core
+    (asked at nearly every frame of a realization)."""
+    return native.core().depth(m._address, d._address, _pair_array(allowed))
+
+
+@functools.lru_cache(maxsize=256)
+def _pair_array(allowed: frozenset) -> np.ndarray:
+    """Body pairs ``allowed`` as an (n, 2) int32 array (the schedule shares its sets: each
+    converted once)."""
+    return np.array(sorted(allowed), np.int32).reshape(-1, 2)

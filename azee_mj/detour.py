@@ -81,6 +81,7 @@ class Detour:
         self.adapter, self.schedule = adapter, adapter.schedule
         #: Blends bent, as ``(track, first frame, last frame)``.
         self.bent: list[tuple[str, int, int]] = []
+        self._speeds: dict[tuple, np.ndarray] = {}  # see wrist_path_speed
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
@@ -95,6 +96,7 @@ class Detour:
                     if b - a >= 4:
                         blends.append((-float(np.abs(q[b, d] - q[a, d]).sum()), t, a, b))
         for _, t, a, b in sorted(blends):
+            self._speeds = {}  # a blend's wrist speeds, asked again by its bends' tests
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
             depth = self.depths(q[a : b + 1], times[a : b + 1])
@@ -133,13 +135,19 @@ class Detour:
 
     def wrist_path_speed(self, frames, track: str, times) -> np.ndarray | None:
         """(n,) the speed [m/s] of arm ``track``'s wrist over postures ``frames`` (n, nq) at
-        ``times``; None if the signer has no such wrist or there is a single frame."""
+        ``times``; None if the signer has no such wrist or there is a single frame. Kept
+        for the blend being bent (read-only): its tests ask the same paths again."""
         site = self.schedule.smap.sites.get(f"WR_{track.removeprefix('arm_')}")
         if site is None or len(times) < 2:
             return None
-        sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
-        pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
-        return mv.speed(pos, fps)
+        key = (site, frames.tobytes(), times.tobytes())
+        speed = self._speeds.get(key)
+        if speed is None:
+            sid, fps = self.adapter.solver.site_id(site), 1.0 / float(times[1] - times[0])
+            pos = np.array([self.adapter.at(x).d.site_xpos[sid].copy() for x in frames])
+            speed = self._speeds[key] = mv.speed(pos, fps)
+            speed.flags.writeable = False
+        return speed
 
     def wrist_speed(self, run, new, d, track: str, times) -> np.ndarray | None:
         """(n,) the speed [m/s] of arm ``track``'s wrist over ``run`` (n, nq) with its dofs
@@ -170,7 +178,8 @@ class Detour:
         found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
         via's offset; ``timed``: the bells over the frames' time, not the blend's
         progress; ``depth``: :meth:`depths` of ``run`` when known."""
-        depth = self.depths(run, times) if depth is None else depth
+        allowed = [self.schedule.allowed_at(t) for t in times]  # the same at every bend
+        depth = self.depths(run, times, allowed) if depth is None else depth
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
         ad = self.adapter
@@ -178,7 +187,7 @@ class Detour:
         path, best, least = run.copy(), None, np.inf
         for k in range(BENDS):
             if k:
-                depth = self.depths(path, times)
+                depth = self.depths(path, times, allowed)
             if depth.max() < least:
                 best, least = path[:, d].copy(), depth.max()
             if least <= cn.COLLISION_TOL:
@@ -193,7 +202,7 @@ class Detour:
                 break  # the via is the frame itself: every further bend would be this one
             path[:, d] = bent
         else:
-            depth = self.depths(path, times)
+            depth = self.depths(path, times, allowed)
             if depth.max() < least:
                 best, least = path[:, d].copy(), depth.max()
         return best if least <= SHALLOW else None
@@ -205,17 +214,18 @@ class Detour:
         at = float(np.clip(s[m], EDGE, 1.0 - EDGE))
         return int(np.argmin(np.abs(s - at)))
 
-    def depths(self, run: np.ndarray, times: np.ndarray) -> np.ndarray:
+    def depths(self, run: np.ndarray, times: np.ndarray, allowed_at=None) -> np.ndarray:
         """(n,) how deep [m] each frame of ``run`` (n, nq) goes into the body (beyond what
         the contacts of its time allow) further than its keys (the first and last frames,
         weighed by how far it is from each): a hand leaving a contact (or reaching one)
-        may touch as its key does."""
-        sched = self.schedule
+        may touch as its key does. ``allowed_at``: the body pairs the contacts allow at
+        each of ``times`` when known (:meth:`~azee_mj.schedule.Schedule.allowed_at`)."""
+        if allowed_at is None:
+            allowed_at = [self.schedule.allowed_at(t) for t in times]
         s = np.linspace(0.0, 1.0, len(run))
         out = np.empty(len(run))
         keys: dict[frozenset, tuple[float, float]] = {}  # the keys' depths, per allowed set
-        for i, (x, t) in enumerate(zip(run, times)):
-            allowed = sched.allowed_at(t)
+        for i, (x, allowed) in enumerate(zip(run, allowed_at)):
             if allowed not in keys:
                 keys[allowed] = (self.depth(run[0], allowed), self.depth(run[-1], allowed))
             first, last = keys[allowed]

@@ -50,10 +50,15 @@ class CurvePreference:
     tol: float  # [rad or m]: a row is 1 this far from the curve
 
     def rows(self, k) -> tuple[np.ndarray, np.ndarray]:
-        """Rows and their Jacobian (n, nv) on the posture of kinematics ``k``."""
-        n = len(self.dofadr)
-        J = np.zeros((n, k.m.nv))
-        J[np.arange(n), self.dofadr] = 1.0 / self.tol
+        """Rows and their Jacobian (n, nv) on the posture of kinematics ``k`` (the Jacobian
+        is constant: made once, read-only)."""
+        J = self.__dict__.get("_J")
+        if J is None or J.shape[1] != k.m.nv:
+            n = len(self.dofadr)
+            J = np.zeros((n, k.m.nv))
+            J[np.arange(n), self.dofadr] = 1.0 / self.tol
+            J.flags.writeable = False
+            self.__dict__["_J"] = J  # a cache, not a field (the record stays frozen)
         return (k.d.qpos[self.qposadr] - self.values) / self.tol, J
 
 

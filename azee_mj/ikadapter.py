@@ -74,6 +74,7 @@ class IKAdapter:
         self.results = SolveLog()
         self._dofs: dict[tuple[str, ...], np.ndarray] = {}
         self._depths: dict[tuple[bytes, frozenset], float] = {}  # see depth()
+        self._touching: dict[frozenset, tuple[tuple[str, str], ...]] = {}  # see problem()
 
     def problem(self, cons, free, q0, t: float, seeds=(), **fields) -> ik.IKProblem:
         """The problem of constraints ``cons`` moving joints ``free`` from ``q0`` (nq,)
@@ -81,8 +82,12 @@ class IKAdapter:
         together allowed to touch. ``fields`` are the other
         :class:`~azee_mj.ik.IKProblem` fields (``max_change``, ``natural``,
         ``preferences``, ``restarts``, ``bounds``, ``prefer``: ``q0`` unless given)."""
-        names = self.schedule.body_names
-        touching = tuple((names[a], names[b]) for a, b in self.schedule.allowed_at(t) if a < b)
+        allowed = self.schedule.allowed_at(t)
+        touching = self._touching.get(allowed)
+        if touching is None:  # one tuple per set of pairs the contacts allow (their names)
+            names = self.schedule.body_names
+            touching = tuple((names[a], names[b]) for a, b in allowed if a < b)
+            self._touching[allowed] = touching
         fields = {"prefer": q0, **fields}
         if "preferences" in fields:
             fields["preferences"] = tuple(fields["preferences"])

@@ -13,6 +13,7 @@ Units: metres; vectors in the signer (world) frame.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import mujoco
 import numpy as np
@@ -120,26 +121,29 @@ class Names:
 
     def __init__(self, model: mujoco.MjModel):
         self.model = model
-        self._ids: dict[tuple[int, str], int] = {}
+        # one table per kind of object (asked per frame and constraint: a plain dict look-up)
+        self._sites: dict[str, int] = {}
+        self._bodies: dict[str, int] = {}
+        self._joints: dict[str, int] = {}
 
-    def _id(self, obj, name: str) -> int:
-        key = (int(obj), name)
-        i = self._ids.get(key)
-        if i is None:
-            i = mujoco.mj_name2id(self.model, obj, name)
-            if i < 0:
-                raise KeyError(f"the model has no {obj.name[6:].lower()} named {name!r}")
-            self._ids[key] = i
+    def _id(self, obj, ids: dict[str, int], name: str) -> int:
+        i = mujoco.mj_name2id(self.model, obj, name)
+        if i < 0:
+            raise KeyError(f"the model has no {obj.name[6:].lower()} named {name!r}")
+        ids[name] = i
         return i
 
     def site(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_SITE, name)
+        i = self._sites.get(name)
+        return self._id(mujoco.mjtObj.mjOBJ_SITE, self._sites, name) if i is None else i
 
     def body(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_BODY, name)
+        i = self._bodies.get(name)
+        return self._id(mujoco.mjtObj.mjOBJ_BODY, self._bodies, name) if i is None else i
 
     def joint(self, name: str) -> int:
-        return self._id(mujoco.mjtObj.mjOBJ_JOINT, name)
+        i = self._joints.get(name)
+        return self._id(mujoco.mjtObj.mjOBJ_JOINT, self._joints, name) if i is None else i
 
 
 class Kinematics:
@@ -210,7 +214,7 @@ class Kinematics:
             return np.cross(a, b), J
         if isinstance(e, Unit):
             a, ja = self.eval(e.a, jac)
-            n = np.linalg.norm(a)
+            n = math.sqrt(float(a @ a))  # np.linalg.norm's value, without its call cost
             if n < 1e-12:
                 return np.zeros(3), None if ja is None else np.zeros_like(ja)
             u = a / n

@@ -115,6 +115,13 @@ def branch_seeder(solver: ik.Solver, smap: SignerMap):
 # ---------------------------------------------------------------------------------------
 
 
+def clip_scalar(x: float, lo: float, hi: float) -> float:
+    """``np.clip(x, lo, hi)`` of one number, to the bit (a NaN stays NaN; where ``x`` equals
+    a bound, ``x``: ``-0.0`` clipped to ``[0.0, 1.0]`` stays ``-0.0``), without the call cost
+    of a ufunc on a scalar."""
+    return min(max(x, lo), hi)
+
+
 class Compiler:
     """Translates score records into :mod:`azee_mj.constraints` on one signer, and names the
     tracks each drives."""
@@ -129,6 +136,8 @@ class Compiler:
             for j in joints:
                 self.joint_track[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] = track
         self._morph_targets: dict[tuple[str, str], cn.JointTarget] = {}
+        self._ranges: dict[str, tuple[np.float64, np.float64, np.float64]] = {}
+        self._body_tracks: dict[tuple[int, bool], frozenset[str]] = {}
 
     # expressions
     def site(self, ref: sc.SiteRef) -> str:
@@ -165,11 +174,10 @@ class Compiler:
     def morph_targets(self, changes: dict[str, float]) -> list[cn.JointTarget]:
         """Joint targets for joint changes from ``qpos0`` [rad], clipped to the joints'
         ranges, within ``MORPH_TOL``."""
-        m, out = self.m, []
+        out = []
         for j, v in changes.items():
-            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)
-            lo, hi = m.jnt_range[jid]
-            val = float(np.clip(m.qpos0[m.jnt_qposadr[jid]] + v, lo, hi))
+            zero, lo, hi = self._joint_range(j)
+            val = float(clip_scalar(zero + v, lo, hi))
             # one record per joint and value, shared by every key that holds it (each
             # key's own copies grew by about 0.8 MB per minute of score)
             key = (j, val.hex())  # hex: 0.0 and -0.0 stay apart
@@ -179,9 +187,27 @@ class Compiler:
             out.append(target)
         return out
 
+    def _joint_range(self, joint: str) -> tuple[np.float64, np.float64, np.float64]:
+        """Joint ``joint``'s ``qpos0`` and range (looked up once)."""
+        out = self._ranges.get(joint)
+        if out is None:
+            m = self.m
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, joint)
+            lo, hi = m.jnt_range[jid]
+            out = self._ranges[joint] = (m.qpos0[m.jnt_qposadr[jid]], lo, hi)
+        return out
+
     # tracks
     def body_tracks(self, body: int, own_only: bool) -> set[str]:
-        """Tracks owning the joints of ``body`` (and, unless ``own_only``, its ancestors')."""
+        """Tracks owning the joints of ``body`` (and, unless ``own_only``, its ancestors'):
+        a new set (worked out once per body)."""
+        key = (int(body), bool(own_only))
+        out = self._body_tracks.get(key)
+        if out is None:
+            out = self._body_tracks[key] = frozenset(self._body_tracks_of(body, own_only))
+        return set(out)
+
+    def _body_tracks_of(self, body: int, own_only: bool) -> set[str]:
         out: set[str] = set()
         while body > 0:
             for j in range(
@@ -342,6 +368,7 @@ class Schedule:
         self.by_path = {b.path: b for b in self.blocks}
         self.contacts = self._contact_windows()
         self._contact_index: IntervalIndex | None = None
+        self._unions: dict[tuple[int, ...], frozenset[tuple[int, int]]] = {}
         self._moved_cache: dict = {}
         self._track_sets: dict[frozenset[str], frozenset[str]] = {}
         self.body_names = [
@@ -378,7 +405,11 @@ class Schedule:
         held = self._contact_index.at(t)
         if len(held) == 1:
             return self.contacts[held[0]].pairs
-        return frozenset().union(*(self.contacts[i].pairs for i in held))
+        key = tuple(held)
+        out = self._unions.get(key)
+        if out is None:  # one set per combination of contacts (its hash kept)
+            out = self._unions[key] = frozenset().union(*(self.contacts[i].pairs for i in held))
+        return out
 
     def block_constraints(self, b: sc.Block) -> list[DrivenConstraint]:
         """What each constraint of a cstr block drives, in order."""

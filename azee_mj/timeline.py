@@ -69,6 +69,12 @@ from azee_mj.schedule import Mode, Schedule, make_solver, shifted
 from azee_mj.sites import DEFAULT_MAP, SignerMap
 from azee_mj.timing import check_fps
 
+#: Scores at least this long [s] give the heap back to the system after the key postures and
+#: after the frames (:func:`~azee_mj.heap.release`). A shorter score frees a few MB at most,
+#: while the collection, the trim and the page faults after it cost a short realization
+#: about 5 % of its CPU time.
+RELEASE_FROM = 60.0
+
 __all__ = [
     "ACROSS",
     "ELBOW_LOW",
@@ -79,6 +85,7 @@ __all__ = [
     "LEAN_STEPS",
     "MEET_TOL",
     "RELAXING",
+    "RELEASE_FROM",
     "UPRIGHT_TOL_DEG",
     "ConstraintTrace",
     "Finding",
@@ -141,7 +148,8 @@ def realize(
     adapter = IKAdapter(sched)
     poser = KeyPoser(adapter, mode)
     keys = poser.key_postures()
-    heap.release()  # the solves' scratch, freed among the keys that live on
+    release = heap.release if score.duration >= RELEASE_FROM else lambda: False
+    release()  # the solves' scratch, freed among the keys that live on
     n_key = len(adapter.results)
     tick(0.4)
     motion = Motion(adapter, mode, fps, rest, hold)
@@ -159,7 +167,7 @@ def realize(
     q, traces = held(motion, own, q, keys, flip, reasons, trilled)
     shift, results = motion.score_start, adapter.results
     del keys, poser, motion, adapter  # grown with the score, and not needed from here
-    heap.release()
+    release()
     traces = tuple(sorted(shaken + traces, key=order_of(own)))
     site_pos = site_positions(solver, smap, q)
     tick(1.0)

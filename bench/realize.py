@@ -6,7 +6,8 @@ Builds sentences by chaining the bundled examples (each example's root becomes a
 child, one after the other), realizes them at 50 fps on one core (the best wall-clock and
 the best CPU time of ``--repeat`` runs each) and writes bench/results/realize.json. The
 target (issue 4): at least 20x faster than real time for a sentence of several signs with
-both hands, holds and transpaths; cost linear in duration and in blocks.
+both hands, holds and transpaths; cost linear in duration and in blocks. The CPU time of
+the same sentence side by side with other commits: ``bench/realize_cpu.py``.
 """
 
 from __future__ import annotations

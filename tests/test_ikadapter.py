@@ -41,3 +41,39 @@ def test_depth_is_mujocos_deepest_contact_asked_once_or_again(solver):
             assert got == cn.penetration_depth(m, d2, ask)
             np.testing.assert_array_equal(solver.data.site_xpos, d2.site_xpos)
     assert deep >= 3  # postures that go into the body were asked
+
+
+def deepest_contact(m, d, allowed) -> float:
+    """The reference reading of MuJoCo's contacts (after ``mj_collision``): the deepest with
+    ``dist < 0`` but between the body pairs ``allowed``."""
+    dist = d.contact.dist[: d.ncon]
+    bodies = m.geom_bodyid[d.contact.geom[: d.ncon]].tolist()
+    deep = [-x for x, b in zip(dist.tolist(), bodies) if x < 0.0 and tuple(b) not in allowed]
+    return max(deep, default=0.0)
+
+
+def test_contact_depth_in_the_core_is_the_deepest_contact_mujoco_finds(solver):
+    """The compiled core's reading of ``mj_collision``'s contacts gives, to the bit, the
+    deepest penetration outside the allowed body pairs, on postures that go into the body
+    (none allowed, the deepest contact's pair allowed in one order or both, an unrelated
+    pair allowed)."""
+    m = solver.model
+    rng = np.random.default_rng(7)
+    deep = 0
+    for _ in range(40):
+        d = mujoco.MjData(m)
+        d.qpos[:] = rng.uniform(solver.lower, solver.upper)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        i = int(np.argmin(d.contact.dist[: d.ncon])) if d.ncon else 0
+        a, b = m.geom_bodyid[d.contact.geom[i]].tolist() if d.ncon else (1, 2)
+        for allowed in (
+            frozenset(),
+            frozenset({(a, b)}),
+            frozenset({(a, b), (b, a)}),
+            frozenset({(0, 1), (1, 0)}),
+        ):
+            want = deepest_contact(m, d, allowed)
+            deep += want > 0.0
+            assert cn.contact_depth(m, d, allowed) == want
+    assert deep >= 40  # most postures went into the body

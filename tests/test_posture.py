@@ -11,7 +11,15 @@ from azee_mj import ik, native
 from azee_mj import kinematics as kin
 from azee_mj.posture import contract, starts
 from azee_mj.posture.collision import moving_pairs
-from azee_mj.posture.plan import axis_target, flat_point
+from azee_mj.posture.contract import BLOCK
+from azee_mj.posture.plan import (
+    BlockCompiler,
+    Plan,
+    _joint_record,
+    _record,
+    axis_target,
+    flat_point,
+)
 from azee_mj.posture.problem import Stop
 from azee_mj.sites import DEFAULT_MAP
 
@@ -186,3 +194,28 @@ def test_report_from_the_cores_rows_is_the_constraints_residual(solver, c):
     plan = solver.plan(ik.IKProblem((c,)))
     (res,), _ = plan.report(q)
     assert res.value == pytest.approx(c.residual(solver.at(q, jacobians=True)), abs=1e-9)
+
+
+def test_a_joint_targets_record_is_the_compilers(solver):
+    """A joint target laid out directly (``_joint_record``) is the record the general
+    compiler gives for it, field by field, and a plan of joint targets holds those records
+    with each row's tolerance, hardness and unit (a slide joint in metres)."""
+    names = [solver.model.joint(j).name for j in range(solver.model.njnt)]
+    slide = next(n for n in names if solver.joint_info(n)[2])
+    turning = next(n for n in names if not solver.joint_info(n)[2])
+    cons = (
+        cn.JointTarget(turning, 0.3, 0.02, "a"),
+        cn.JointTarget(slide, -0.01, 0.001, "b", soft=True),
+    )
+    for row, c in enumerate(cons):
+        qadr, dof, _ = solver.joint_info(c.joint)
+        (block,) = BlockCompiler(solver).blocks(c)
+        want = np.array([_record(BLOCK, {**block, "start": row, "hard": int(not c.soft)})], BLOCK)
+        got = np.array([_joint_record(row, int(not c.soft), qadr, dof, c.value)], BLOCK)
+        assert want.tobytes() == got.tobytes()
+    plan = Plan(solver, ik.IKProblem(cons, ()))
+    np.testing.assert_array_equal(plan.inv, [1 / 0.02, 1 / 0.001])
+    assert plan.hard == [(0, 1)]
+    assert [(b.start, b.stop, b.scaled) for b in plan.items] == [(0, 1, False), (1, 2, False)]
+    residuals, _ = plan.report(solver.natural)
+    assert [(r.kind, r.unit) for r in residuals] == [("jointtarget", "rad"), ("jointtarget", "m")]

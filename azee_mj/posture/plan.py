@@ -135,6 +135,9 @@ class BlockCompiler:
     def blocks(self, c: Constraint) -> list[dict]:
         """Constraint ``c``'s blocks (a general form is one ``GENERIC`` block)."""
         s = self.s
+        if isinstance(c, JointTarget):  # most of a realization's constraints: first
+            qadr, dof, _ = s.joint_info(c.joint)
+            return [_block(JOINT, 1, id=qadr, dof=dof, value=float(c.value))]
         if isinstance(c, Place):
             flat = flat_point(c.target) if c.shift is None and not c.gap else None
             if flat is not None:
@@ -155,9 +158,6 @@ class BlockCompiler:
             if all(b is not None for b in eyes):
                 return eyes
             del self.terms[n_terms:]
-        elif isinstance(c, JointTarget):
-            qadr, dof, _ = s.joint_info(c.joint)
-            return [_block(JOINT, 1, id=qadr, dof=dof, value=float(c.value))]
         if isinstance(c, Look):
             k = 3 * len(c.eyes)
         else:
@@ -174,10 +174,35 @@ def _zero_row(dtype: np.dtype) -> dict:
     }
 
 
-def _records(dtype: np.dtype, rows: list[dict]) -> np.ndarray:
-    """``rows`` (field -> value; missing fields zero) as records of ``dtype``."""
-    zero = _zero_row(dtype)
-    return np.array([tuple({**zero, **row}.values()) for row in rows], dtype)
+def _record(dtype: np.dtype, row: dict) -> tuple:
+    """``row`` (field -> value; missing fields zero) as a record tuple of ``dtype``."""
+    return tuple({**_zero_row(dtype), **row}.values())
+
+
+def _joint_record(start: int, hard: int, qadr: int, dof: int, value: float) -> tuple:
+    """The BLOCK record of a joint target's row: what :meth:`BlockCompiler.blocks` gives
+    for it (``_block(JOINT, 1, id=qadr, dof=dof, value=value)``) at row ``start``."""
+    zero3 = (0.0, 0.0, 0.0)
+    return (JOINT, start, 1, hard, 0, qadr, -1, dof, 0, 0, zero3, zero3, zero3, value)
+
+
+@functools.cache
+def _one_row(start: int) -> RowBlock:
+    """The row block of a one-row constraint (a joint target) at row ``start`` (one shared
+    record per row)."""
+    return RowBlock(start, start + 1, False)
+
+
+#: A joint target's kind and unit (by whether its joint slides) in a Residual.
+_JOINT_NAMED = {False: ("jointtarget", "rad"), True: ("jointtarget", "m")}
+
+
+def _named(solver: Solver, c: Constraint) -> tuple[str, str]:
+    """Constraint ``c``'s kind (its class's name in lower case) and unit in a
+    :class:`~azee_mj.posture.problem.Residual`: "m" for a placement or a slide joint's
+    target, else "rad"."""
+    slide = isinstance(c, JointTarget) and solver.joint_info(c.joint)[2]
+    return type(c).__name__.lower(), "m" if isinstance(c, Place) or slide else "rad"
 
 
 class Plan:
@@ -233,32 +258,51 @@ class Plan:
 
     def _layout(self, solver: Solver, problem: IKProblem) -> tuple[np.ndarray, np.ndarray]:
         """The BLOCK and TERM records of the problem; sets ``items``, ``hard`` (row ranges
-        of the hard constraints), ``generic`` and ``inv`` (1 / tolerance per row)."""
+        of the hard constraints), ``generic``, ``inv`` (1 / tolerance per row) and
+        ``_named`` (each constraint's kind and unit, for :meth:`report`). A joint target
+        (most of a realization's constraints) is laid out here directly: its one row is
+        asked of every problem, many times a frame."""
         compiler = BlockCompiler(solver)
+        joint_info = solver.scope.joint_info
         self.items: list[RowBlock] = []
         self.hard: list[tuple[int, int]] = []
         self.generic: list[tuple[Constraint, int, int]] = []
+        self._named: list[tuple[str, str]] = []
         inv: list[float] = []
-        rows: list[dict] = []
+        rows: list[tuple] = []
         row = 0
         for c in problem.constraints:
+            if type(c) is JointTarget:
+                qadr, dof, slide = joint_info(c.joint)
+                hard = 0 if c.soft else 1
+                rows.append(_joint_record(row, hard, qadr, dof, float(c.value)))
+                self.items.append(_one_row(row))
+                self._named.append(_JOINT_NAMED[slide])
+                if hard:
+                    self.hard.append((row, row + 1))
+                inv.append(1.0 / c.tol)
+                row += 1
+                continue
             blocks = compiler.blocks(c)
             k = sum(b["k"] for b in blocks)
             generic = blocks[0]["kind"] == GENERIC
             if generic:
                 self.generic.append((c, row, row + k))
             self.items.append(RowBlock(row, row + k, generic))
+            self._named.append(_named(solver, c))
             if not c.soft:
                 self.hard.append((row, row + k))
-            start = row
+            start, hard = row, 0 if c.soft else 1
             for b in blocks:
-                rows.append({**b, "start": start, "hard": 0 if c.soft else 1})
+                rows.append(_record(BLOCK, {**b, "start": start, "hard": hard}))
                 start += b["k"]
             inv += [1.0 if generic else 1.0 / c.tol] * k
             row += k
         self.inv = np.array(inv)
-        terms = [{"kind": kind, "id": i, "coef": coef} for kind, i, coef in compiler.terms]
-        return _records(BLOCK, rows), _records(TERM, terms)
+        terms = [
+            _record(TERM, {"kind": kind, "id": i, "coef": coef}) for kind, i, coef in compiler.terms
+        ]
+        return np.array(rows, BLOCK), np.array(terms, TERM)
 
     def _set_natural(self, solver: Solver, problem: IKProblem) -> None:
         prefs = problem.preferences
@@ -369,13 +413,14 @@ class Plan:
         k = self.s.at(q, jacobians=True)
         self.core.rows()
         out = []
-        for c, it in zip(self.cons, self.items):
+        r = self.r
+        for c, it, (kind, unit) in zip(self.cons, self.items, self._named):
             if it.scaled:
                 value = c.residual(k)
+            elif kind == "jointtarget":  # most of them: residual_from_rows on one row, inline
+                x = float(r[it.start])
+                value = math.sqrt(x * x)
             else:
-                value = residual_from_rows(c, self.r[it.start : it.stop])
-            unit = "rad"
-            if isinstance(c, Place) or isinstance(c, JointTarget) and self.s.joint_info(c.joint)[2]:
-                unit = "m"
-            out.append(Residual(c.label, type(c).__name__.lower(), value, c.tol, unit))
+                value = residual_from_rows(c, r[it.start : it.stop])
+            out.append(Residual(c.label, kind, value, c.tol, unit))
         return tuple(out), self.core.deepest(self.s.all_pairs)

@@ -331,7 +331,7 @@ class Solver:
     def _restarts(self, best, plan, problem, q_start, history) -> tuple[Attempt, int, int]:
         """Restarts while nothing meets everything: (best attempt, iterations, restarts)."""
         restarts = self.restarts if problem.restarts is None else problem.restarts
-        points = self._restart_points(problem, q_start, plan.free, restarts)
+        points = _restart_points(self, problem, q_start, plan.free, restarts)
         iters = attempt = 0
         # the next start is drawn only when needed: the seeder's starts cost a search each
         while best.rank[0] and (nxt := next(points, None)) is not None:
@@ -366,32 +366,14 @@ class Solver:
         return dataclasses.replace(out, iterations=out.iterations + iters - run.iterations)
 
     def _settle(self, run: LMRun, plan, history) -> Attempt:
-        """The attempt an LM run ends: unmet as it is, met and then polished."""
+        """The attempt an LM run ends: unmet as it is, met and then polished to the most
+        natural posture that keeps the constraints (see :meth:`Plan.polish`)."""
         if not run.met:
             return Attempt(run.q, (1, run.cost), run.iterations, run.stop)
-        if not plan.natural:
+        if not plan.natural or self.naturalness is None:
             return Attempt(run.q, (0, 0.0), run.iterations, run.stop)
-        q, nat, n_it, polish = self._polish(run.q, plan, history)
+        q, nat, n_it, polish = plan.polish(run.q, history)
         return Attempt(q, (0, nat), run.iterations + n_it, run.stop, polish)
-
-    def _polish(self, q, plan, history) -> tuple[np.ndarray, float, int, Stop | None]:
-        """The most natural posture that keeps the constraints met from ``q`` (see
-        :meth:`Plan.polish`); none without a ``naturalness``."""
-        if self.naturalness is None:
-            return q, 0.0, 0, None
-        return plan.polish(q, history)
-
-    def _restart_points(self, problem, q_start, free, restarts):
-        """(start, from the seeder) of the restarts (see
-        :func:`~azee_mj.posture.starts.restart_points`): the seeder is asked only when the
-        problem has no ``seeds`` of its own (the realizer's have their starts chosen)."""
-        seeder = None
-        if self.seeder is not None and not problem.seeds:
-            seeder = lambda: self.seeder(self, problem, q_start)
-        generic = starts.generic_starts(
-            self.natural, self.lower, self.upper, self.seed, q_start, free
-        )
-        return starts.restart_points(q_start, restarts, seeder, generic)
 
     def _lm(self, q, plan, history, posture=0.0, stop=0.05, early=True) -> LMRun:
         """One Levenberg-Marquardt run (see :meth:`Plan.lm`) with this solver's joint
@@ -463,6 +445,19 @@ def _wide_attempts(solver: Solver, plan, problem, q_start, history) -> tuple[Att
         lambda q: solver.preference_cost(problem, q) <= WIDE_PREFERENCE,
     )
     return best, iters, 0
+
+
+def _restart_points(solver: Solver, problem: IKProblem, q_start, free, restarts):
+    """(start, from the seeder) of the restarts (see
+    :func:`~azee_mj.posture.starts.restart_points`): the seeder is asked only when the
+    problem has no ``seeds`` of its own (the realizer's have their starts chosen)."""
+    seeder = None
+    if solver.seeder is not None and not problem.seeds:
+        seeder = lambda: solver.seeder(solver, problem, q_start)
+    generic = starts.generic_starts(
+        solver.natural, solver.lower, solver.upper, solver.seed, q_start, free
+    )
+    return starts.restart_points(q_start, restarts, seeder, generic)
 
 
 def _narrow(plan: Plan, problem: IKProblem, q_start: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -256,6 +256,44 @@ class GroupPoser:
         return f"; face to face, {why[0].detail}" if why else ""
 
 
+def solve_order(groups: list[set[str]], items: list[Active], moved_by) -> list[set[str]]:
+    """The order to solve a segment's groups in: a group whose tracks move a body that
+    another group's constraints name first (the trunk before the head it carries, the
+    head before a hand that touches it: solved the other way round, the later group
+    moves the earlier one off its target). Otherwise (and in a cycle) hands and the
+    face first (a placed fingertip depends on its hand's shape), then groups driven
+    by morphs only, then by name (deterministic). ``moved_by(constraint)``: the tracks
+    whose joints move a body the constraint names."""
+
+    def key(g):
+        return (
+            not all(t.startswith(("hand", "face", "eyes")) for t in g),
+            any(it.driven.con is not None for it in items if it.driven.tracks & g),
+            sorted(g),
+        )
+
+    needs = [
+        set().union(
+            *(
+                moved_by(it.driven.con)
+                for it in items
+                if it.driven.tracks & g and it.driven.con is not None
+            )
+        )
+        - g
+        for g in groups
+    ]
+    rest = sorted(range(len(groups)), key=lambda i: key(groups[i]))
+    out = []
+    while rest:
+        i = next(
+            (i for i in rest if not any(needs[i] & groups[j] for j in rest if j != i)), rest[0]
+        )
+        rest.remove(i)
+        out.append(groups[i])
+    return out
+
+
 class KeyPoser:
     """Pass 1: the key postures of the adapter's schedule laid out by ``mode``; ``reasons``
     says why a key posture misses a constraint (constraint label -> the diagnosis, see
@@ -355,7 +393,7 @@ class KeyPoser:
             groups = [driven | (set(sched.track_joints) - set(FLAT_FIXED))]
         else:
             groups = components([it.driven.tracks for it in items])
-        groups = self.order(groups, items)
+        groups = solve_order(groups, items, self.schedule.moved_by)
         before = state.copy()
         solved = []
         for g in groups:
@@ -420,43 +458,6 @@ class KeyPoser:
         for dg in diagnose(ad.solver, problem, s.result, start, limb_root):
             if dg.label not in self.reasons:
                 self.reasons[dg.label] = dg.detail + self.groups.why_not_facing(dg.label)
-
-    def order(self, groups: list[set[str]], items: list[Active]) -> list[set[str]]:
-        """The order to solve a segment's groups in: a group whose tracks move a body that
-        another group's constraints name first (the trunk before the head it carries, the
-        head before a hand that touches it: solved the other way round, the later group
-        moves the earlier one off its target). Otherwise (and in a cycle) hands and the
-        face first (a placed fingertip depends on its hand's shape), then groups driven
-        by morphs only, then by name (deterministic)."""
-
-        def key(g):
-            return (
-                not all(t.startswith(("hand", "face", "eyes")) for t in g),
-                any(it.driven.con is not None for it in items if it.driven.tracks & g),
-                sorted(g),
-            )
-
-        moved_by = self.schedule.moved_by
-        needs = [
-            set().union(
-                *(
-                    moved_by(it.driven.con)
-                    for it in items
-                    if it.driven.tracks & g and it.driven.con is not None
-                )
-            )
-            - g
-            for g in groups
-        ]
-        rest = sorted(range(len(groups)), key=lambda i: key(groups[i]))
-        out = []
-        while rest:
-            i = next(
-                (i for i in rest if not any(needs[i] & groups[j] for j in rest if j != i)), rest[0]
-            )
-            rest.remove(i)
-            out.append(groups[i])
-        return out
 
     def recruit_trunk(self, groups, solved, items, before: np.ndarray, keys, t0: float):
         """The limbs alone cannot meet some groups' constraints: the trunk helps them, as

@@ -9,8 +9,8 @@ from scores import cstr, envelope, shaped
 from azee_mj import ik
 from azee_mj.ergonomics import ergonomics
 from azee_mj.ikadapter import IKAdapter
-from azee_mj.keyposes import Active, GroupPoser, KeyPoser, components, violation
-from azee_mj.schedule import Mode, Schedule
+from azee_mj.keyposes import Active, GroupPoser, KeyPoser, components, solve_order, violation
+from azee_mj.schedule import DrivenConstraint, Mode, Schedule
 from azee_mj.score import load_score
 
 
@@ -22,6 +22,21 @@ def test_components_join_the_track_sets_that_share_a_track():
     groups = components([{"arm_R"}, {"hand_R"}, {"arm_L", "arm_R"}, {"head"}, {"head", "eyes"}])
     assert sorted(map(sorted, groups)) == [["arm_L", "arm_R"], ["eyes", "head"], ["hand_R"]]
     assert components([]) == []
+
+
+def test_solve_order_puts_a_group_before_the_groups_whose_targets_it_moves():
+    def item(tracks, con):
+        return Active(DrivenConstraint(con, {}, set(tracks), None), True)
+
+    # the head's constraint names a body the spine moves; the hand's a body the head moves
+    moves = {"look": frozenset({"spine", "head"}), "touch": frozenset({"head", "arm_R"})}
+    items = [item({"head"}, "look"), item({"arm_R"}, "touch"), item({"spine"}, None)]
+    groups = [{"arm_R"}, {"head"}, {"spine"}]
+    assert solve_order(groups, items, moves.get) == [{"spine"}, {"head"}, {"arm_R"}]
+    # nothing named: hands and the face first, then the groups driven by morphs only
+    morph_only = [item({"hand_R"}, None), item({"spine"}, None), item({"arm_L"}, "x")]
+    order = solve_order([{"spine"}, {"arm_L"}, {"hand_R"}], morph_only, lambda c: frozenset())
+    assert order == [{"hand_R"}, {"spine"}, {"arm_L"}]
 
 
 def test_violation_sums_the_missed_tolerances_and_the_penetration():

@@ -190,10 +190,13 @@ class Pacer:
         ``pins``: frames that keep their time, see :func:`~azee_mj.pacing.paced`; ``kept``:
         frames held under a constraint, not smoothed):
         its path smoothed, else as it is; a frame paced into the body (another limb moves
-        on its own time, a smoothed corner) pushed out, nearest it. The first that keeps
-        the body out of itself (within the solver's ``PENETRATION_LIMIT``), turns no joint
-        faster than the frames or ``BRANCH_SPEED``, moves no site faster than the frames'
-        fastest and is smoother than the frames (SPARC of the sites' summed speed). None: the frames, or the sites hardly move."""
+        on its own time, a smoothed corner) pushed out, nearest it. Of those that keep
+        the body out of itself (within the solver's ``PENETRATION_LIMIT``), turn no joint
+        faster than the frames or ``BRANCH_SPEED``, move no site faster than the frames'
+        fastest and are smoother than the frames (SPARC of the sites' summed speed), the
+        one with fewer speed peaks, the smoothed path on a tie: a smoothed corner pushed
+        out of the body frame by frame can leave bumps the path as it is, paced, does
+        not. None: the frames, or the sites hardly move."""
         ad = self.adapter
         joints = self.joints(tracks)
         d = ad.dofs(joints)
@@ -203,6 +206,7 @@ class Pacer:
             return None  # one bell already
         fastest = max(np.abs(np.diff(run[:, d], axis=0)).max(), BRANCH_SPEED / self.fps)
         kept, pins = sorted(set(pins) | set(kept)), sorted(set(pins))
+        best, fewest = None, np.inf
         for passes in (SMOOTHING, 0):
             path = run.copy()
             path[:, d] = smoothed(run[:, d], passes)
@@ -219,9 +223,11 @@ class Pacer:
                 continue
             if self.too_fast(pts, at_run):
                 continue  # a push made a site faster than the frames or a bell
-            if self.smoothness(pts) > score:
-                return path[:, d]
-        return None
+            if self.smoothness(pts) > score and self.peaks(pts) < fewest:
+                best, fewest = path[:, d], self.peaks(pts)
+                if fewest <= 1:
+                    break
+        return best
 
     def retimed(self, path, d, sids, law: bool, pins, pts=None) -> bool:
         """The dofs ``d`` of ``path`` (n, nq) paced along it (:func:`~azee_mj.pacing.paced`

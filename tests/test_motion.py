@@ -2,6 +2,7 @@
 return to rest after, no clamp on the speed a score's timing needs (a finding instead),
 tempo, and the rollout file keeping the score's start and the findings."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -167,3 +168,30 @@ def test_a_hold_keeps_the_trunk_and_the_next_movement_is_one_bell(solver):
     assert len(moves) == 1 and moves[0].peaks == 1
     # it starts when the hold ends
     assert r.time[moves[0].first] >= r.score_start + 1.2 - 0.04
+
+
+def _sentence(names: list[str]) -> dict:
+    """The examples ``names`` chained 0.1 s apart (``bench/realize.py``'s sentence)."""
+    children, t = [], 0.0
+    for i, n in enumerate(names):
+        root = json.loads((Path(__file__).parents[1] / "examples" / f"{n}.json").read_text())[
+            "root"
+        ]
+        d = root["end"] - root["start"]
+        children.append({**root, "name": f"S{i}_{root['name']}", "start": t, "end": t + d})
+        t += d + 0.1
+    root = {"name": "SENTENCE", "kind": "sync", "start": 0.0, "end": t, "children": children}
+    return {"format": "azee-score", "version": 1, "strong_side": "R", "root": root}
+
+
+def test_a_detour_paced_is_one_bell_when_its_smoothed_corner_pushed_out_is_not(solver):
+    """The 10-sign sentence's weak hand leaving the second info-about for penser (11.06 to
+    11.72 s of the score) goes around the body by a bend near its end. Pacing its path
+    smoothed cut the bend's corner into the body, and the frames pushed out frame by frame
+    left three speed peaks; the bend's own path, paced, is one bell, and is now kept."""
+    signs = ["bien", "pointing", "arbre", "info-about", "penser"] * 2
+    r = timeline.realize(load_score(_sentence(signs)), solver=solver)
+    t0, t1 = r.score_start + 11.2, r.score_start + 11.5
+    moves = [m for m, a, b in _wrist_moves(r, "WR_L") if a < t1 and b > t0]
+    assert len(moves) == 1 and moves[0].peaks == 1
+    assert moves[0].sparc >= -1.45

@@ -308,6 +308,10 @@ class KeyPoser:
         #: id of a missing solve kept upright -> the joints to say why it missed with (the
         #: trunk's too: it was tried, so what conflicts is told as it is with the trunk)
         self.diagnose_free: dict[int, tuple[str, ...]] = {}
+        m, sched = adapter.solver.model, self.schedule
+        spine = [adapter.solver.joint_id(j) for j in sched.track_joints.get("spine", ())]
+        #: the spine's dofs that tilt it (axis not the vertical in the body's frame)
+        self.tilt = np.array([m.jnt_dofadr[j] for j in spine if abs(m.jnt_axis[j][2]) < 0.9], int)
 
     def take(self, state: np.ndarray, tracks, q: np.ndarray) -> None:
         """Copy the joints of ``tracks`` from posture ``q`` into ``state`` (in place)."""
@@ -424,12 +428,12 @@ class KeyPoser:
         its shoulder that ``kept`` holds below it (the palm on the back of the head: the
         elbow raised beside the head instead of a 20-degree bow; two palms on the cheeks
         keep their elbows low, trunk upright)."""
-        d, home = self.schedule.track_dofs.get("spine"), self.schedule.home
         final = before.copy()
         for g, s in zip(*kept):
             self.take(final, g, s.qpos)
-        met = all(s.converged for s in kept[1])
-        if d is None or (met and np.abs(final[d] - home[d]).max() < SAME_POSTURE):
+        if "spine" not in self.schedule.track_dofs or (
+            all(s.converged for s in kept[1]) and not self.leans(final)
+        ):
             return kept
         unfaced = dict(self.groups.unfaced)  # the kept solve's, to say why it missed
         state, out, redo = before.copy(), [], False
@@ -482,7 +486,7 @@ class KeyPoser:
             out.append(solve(g, items, state, keys, t0, reuse=False))
             self.take(state, g, out[-1].qpos)
         tries = [([helped, *met], out)]
-        if met and all(s.converged for s in out):
+        if met and all(s.converged for s in out) and self.leans(state):
             tries.insert(0, self.lean_together(tries[0], state, items, keys, t0))
         if met and not all(s.converged for s in out):
             group = set().union(*groups) | {"spine"}
@@ -513,6 +517,14 @@ class KeyPoser:
             if not s.converged:
                 self.diagnose_free[id(s)] = s.free + tuple(j for j in spine if j not in s.free)
         return kept
+
+    def leans(self, q: np.ndarray) -> bool:
+        """Whether posture ``q``'s trunk bends from upright (forward, back or sideways; a
+        turn about the vertical is not a lean): only then are the arms solved again
+        another way to bring it back (:meth:`lean_together`, :meth:`other_branches`),
+        each retry costing the arms' solves again."""
+        tilt = self.tilt
+        return bool(tilt.size and np.abs(q[tilt] - self.schedule.home[tilt]).max() >= SAME_POSTURE)
 
     def lean_together(self, recruited, state: np.ndarray, items, keys, t0: float):
         """The met ``recruited`` (groups, solves; posture ``state``) with the trunk brought

@@ -186,3 +186,22 @@ def test_joined_hands_with_an_oriented_palm_start_turned_as_asked(solver):
     assert np.linalg.norm(edge - k.d.site_xpos[solver.site_id("PA_L")]) <= 1e-3
     normal = k.d.xmat[solver.body_id("palm_L")].reshape(3, 3) @ np.array([0.0, -1.0, 0.0])
     assert np.degrees(np.arccos(np.clip(normal[2], -1, 1))) <= 1.0 + 1e-6
+
+
+def test_a_turned_trunk_does_not_lean_a_bent_one_does(solver):
+    # the arms are solved again another way only for a trunk bent from upright
+    score = _score([{"type": "place", "site": "@I_TIP(s)", "at": [0.3, -0.15, 1.2]}])
+    poser = KeyPoser(IKAdapter(Schedule(score, solver)), Mode.MULTITRACK)
+    home = poser.schedule.home
+    m = solver.model
+    assert not poser.leans(home)
+    for joint, leans in [("back_1_rot", False), ("back_2_rot", False), ("back_1_flex", True)]:
+        q = home.copy()
+        q[m.jnt_qposadr[solver.joint_id(joint)]] += 0.1
+        assert poser.leans(q) is leans, joint
+    assert sorted(m.joint(int(i)).name for i in m.dof_jntid[poser.tilt]) == [
+        "back_1_flex",
+        "back_1_lat",
+        "back_2_flex",
+        "back_2_lat",
+    ]

@@ -20,9 +20,10 @@ from __future__ import annotations
 import numpy as np
 
 from azee_mj import constraints as cn
+from azee_mj import ik
 from azee_mj import movement as mv
 from azee_mj.blend import minjerk
-from azee_mj.ikadapter import IKAdapter
+from azee_mj.ikadapter import IKAdapter, Solved
 
 #: How far a bend goes, over the via's offset from the blend: the via itself only just
 #: clears the body, the frames around it may not.
@@ -82,6 +83,7 @@ class Detour:
         #: Blends bent, as ``(track, first frame, last frame)``.
         self.bent: list[tuple[str, int, int]] = []
         self._speeds: dict[tuple, np.ndarray] = {}  # see wrist_path_speed
+        self._vias: dict[tuple, ik.IKResult] = {}  # see via
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
@@ -96,7 +98,7 @@ class Detour:
                     if b - a >= 4:
                         blends.append((-float(np.abs(q[b, d] - q[a, d]).sum()), t, a, b))
         for _, t, a, b in sorted(blends):
-            self._speeds = {}  # a blend's wrist speeds, asked again by its bends' tests
+            self._speeds, self._vias = {}, {}  # a blend's, asked again by its bends' tests
             d = self.schedule.track_dofs[t]
             joints = sorted(self.schedule.track_joints[t])
             depth = self.depths(q[a : b + 1], times[a : b + 1])
@@ -182,7 +184,6 @@ class Detour:
         depth = self.depths(run, times, allowed) if depth is None else depth
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
-        ad = self.adapter
         s = np.linspace(0.0, 1.0, len(run)) if timed else progress(run[:, d])
         path, best, least = run.copy(), None, np.inf
         for k in range(BENDS):
@@ -193,8 +194,7 @@ class Detour:
             if least <= cn.COLLISION_TOL:
                 break
             m = self.via_frame(depth, s)
-            soft = ad.soft_targets(path[m], joints)
-            via = ad.solve(soft, joints, path[m], times[m])
+            via = self.via(path[m], joints, times[m])
             if via.penetration > cn.PENETRATION_LIMIT:
                 break
             bent = path[:, d] + bump(s, s[m])[:, None] * (reach * (via.qpos[d] - path[m, d]))
@@ -206,6 +206,20 @@ class Detour:
             if depth.max() < least:
                 best, least = path[:, d].copy(), depth.max()
         return best if least <= SHALLOW else None
+
+    def via(self, q: np.ndarray, joints, t: float) -> ik.IKResult:
+        """The arm (``joints``) solved out of the body from frame ``q`` at time ``t`` [s],
+        kept for the blend being bent: a retry (bells over time, another reach) often bends
+        first at the same frame. A kept solve is logged again in the adapter's results, as
+        taking no time."""
+        ad = self.adapter
+        key = (q.tobytes(), tuple(joints), t)
+        via = self._vias.get(key)
+        if via is None:
+            via = self._vias[key] = ad.solve(ad.soft_targets(q, joints), joints, q, t)
+        else:
+            ad.results.append(Solved(via.iterations, via.converged, 0.0))
+        return via
 
     def via_frame(self, depth: np.ndarray, s: np.ndarray) -> int:
         """The frame to bend at: the deepest inner one, its progress ``s`` kept
@@ -236,4 +250,4 @@ class Detour:
         """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``
         (worked out once per posture by the adapter: a blend's keys are its end frames, and a
         bend leaves the frames near its ends as they were)."""
-        return self.adapter.depth(q, allowed)
+        return self.adapter.depth(q, allowed, posed=False)

@@ -110,19 +110,24 @@ class IKAdapter:
         bring together."""
         return self.depth(q, self.schedule.allowed_at(t)) > cn.COLLISION_TOL
 
-    def depth(self, q: np.ndarray, allowed=frozenset()) -> float:
+    def depth(self, q: np.ndarray, allowed=frozenset(), posed: bool = True) -> float:
         """Deepest penetration [m] (>= 0) of posture ``q`` (nq,) but for the body pairs
         ``allowed`` (:func:`~azee_mj.constraints.penetration_depth`, its kinematics run
-        once); the solver's data holds that posture's kinematics afterwards. Each depth is
-        kept (:data:`DEPTHS_KEPT` at most): a detour measures the same frames as it bends a
-        blend, and the frame solver and the pacing measure many of them again."""
-        k = self.solver.at(q)
+        once); the solver's data holds that posture's kinematics afterwards (unless not
+        ``posed``, when a depth already known costs no kinematics: a caller that reads only
+        the depth). Each depth is kept (:data:`DEPTHS_KEPT` at most): a detour measures the
+        same frames as it bends a blend, and the frame solver and the pacing measure many
+        of them again."""
         key = (q.tobytes(), allowed)
         out = self._depths.get(key)
-        if out is None:
-            if len(self._depths) >= DEPTHS_KEPT:
-                self._depths.clear()
-            out = self._depths[key] = cn.contact_depth(k.m, k.d, allowed)
+        if out is not None:
+            if posed:
+                self.solver.at(q)
+            return out
+        k = self.solver.at(q)
+        if len(self._depths) >= DEPTHS_KEPT:
+            self._depths.clear()
+        out = self._depths[key] = cn.contact_depth(k.m, k.d, allowed)
         return out
 
     def dofs(self, joints) -> np.ndarray:

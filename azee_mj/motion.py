@@ -297,27 +297,27 @@ class Pacer:
         ``run``."""
         ad, sched = self.adapter, self.schedule
 
-        def depth(q, t, allowed=None):
-            return ad.depth(q, sched.allowed_at(t) if allowed is None else allowed)
+        def depth(q, t, allowed=None, posed=True):
+            return ad.depth(q, sched.allowed_at(t) if allowed is None else allowed, posed)
 
         pts = np.empty((len(path), len(sids), 3))
-        bad = []
+        bad, held = [], set(kept)
         for i, t in enumerate(times):
             if ad.penetrates(path[i], t):
                 bad.append(i)
+                if len(bad) > MAX_PUSHED * len(path) or i in held:
+                    return None  # paced through the body, or where it must hold a constraint
             pts[i] = ad.solver.data.site_xpos[sids]
-        if len(bad) > MAX_PUSHED * len(path) or set(bad) & set(kept):
-            return None  # paced through the body, or where it must hold a constraint
         # where a contact lets two parts touch, they go no deeper into each other than the
         # frame did
         none = frozenset()
         for i in (i for i, t in enumerate(times) if sched.allowed_at(t)):
-            deepest = max(depth(run[i], times[i], none), cn.COLLISION_TOL)
+            deepest = max(depth(run[i], times[i], none, posed=False), cn.COLLISION_TOL)
             if depth(path[i], times[i], none) > deepest:
                 return None
         for i in bad:
             soft = ad.soft_targets(path[i], joints)
-            limit = max(cn.COLLISION_TOL, depth(run[i], times[i]))
+            limit = max(cn.COLLISION_TOL, depth(run[i], times[i], posed=False))
             path[i] = ad.solve(soft, joints, path[i], times[i], restarts=0).qpos
             if depth(path[i], times[i]) > limit:
                 return None

@@ -43,6 +43,29 @@ def test_depth_is_mujocos_deepest_contact_asked_once_or_again(solver):
     assert deep >= 3  # postures that go into the body were asked
 
 
+def test_a_known_depth_not_posed_is_the_same_and_leaves_the_data_as_it_was(solver):
+    """``posed=False``: a depth asked again is the kept one, with no kinematics run (the
+    data still holds the posture asked last); a depth not yet known poses its posture."""
+    adapter = IKAdapter(Schedule(load_score(envelope(sync("S", 0.4))), solver))
+    joints = adapter.schedule.track_joints
+    arms = adapter.dofs(sorted(joints["arm_R"]))
+    rng = np.random.default_rng(5)
+    q1, q2 = solver.natural.copy(), solver.natural.copy()
+    q1[arms] = rng.uniform(solver.lower[arms], solver.upper[arms])
+    q2[arms] = rng.uniform(solver.lower[arms], solver.upper[arms])
+    first = adapter.depth(q1)
+    adapter.depth(q2)
+    at_q2 = solver.data.site_xpos.copy()
+    assert adapter.depth(q1, posed=False) == first
+    np.testing.assert_array_equal(solver.data.site_xpos, at_q2)
+    q3 = q1.copy()
+    q3[arms] = rng.uniform(solver.lower[arms], solver.upper[arms])
+    d = mujoco.MjData(solver.model)
+    d.qpos[:] = q3
+    assert adapter.depth(q3, posed=False) == cn.penetration_depth(solver.model, d)
+    np.testing.assert_array_equal(solver.data.site_xpos, d.site_xpos)
+
+
 def deepest_contact(m, d, allowed) -> float:
     """The reference reading of MuJoCo's contacts (after ``mj_collision``): the deepest with
     ``dist < 0`` but between the body pairs ``allowed``."""

@@ -258,8 +258,10 @@ class Solver:
         with ``converged=False``. Fingertips that may touch with any point of their round
         end are tried head-on first (:func:`head_on_first`).
         """
-        result = head_on_first(self._solve_once, problem, q0, self.preference_cost)
-        result = _last_resort(self, problem, q0, result)
+        solve_once = self._solve_once
+        if _wide_allowed(self, problem):
+            solve_once = functools.partial(self._solve_once, wide=True)
+        result = head_on_first(solve_once, problem, q0, self.preference_cost)
         if self.on_solve is not None:
             self.on_solve(problem, result)
         return result
@@ -277,7 +279,7 @@ class Solver:
     ) -> tuple[IKResult, tuple[int, float]]:
         """:meth:`solve` as posed, and the kept attempt's rank (see :class:`Attempt`);
         ``wide``: from starts with the limbs anywhere in their ranges only (see
-        :func:`_last_resort`)."""
+        :func:`_wide_allowed`)."""
         t0 = time.perf_counter()
         q_start = np.clip(
             self.natural if q0 is None else np.asarray(q0, float), self.lower, self.upper
@@ -407,21 +409,13 @@ def head_on_first(solve_once, problem: IKProblem, q0, preference_cost=None) -> I
     return dataclasses.replace(kept, iterations=a.iterations + b.iterations, time=a.time + b.time)
 
 
-def _last_resort(solver: Solver, problem: IKProblem, q0, result: IKResult) -> IKResult:
-    """``result``, or when it misses and ``problem.wide`` asks for it (a key posture's last
-    resort), the solve from starts with the limbs anywhere in their ranges if that meets:
-    a hand behind the head or on the nape lies in a basin that neither the natural posture
-    nor the arm seeds reach."""
+def _wide_allowed(solver: Solver, problem: IKProblem) -> bool:
+    """Whether ``problem`` is solved from starts with the limbs anywhere in their ranges
+    (``problem.wide``, a key posture's last resort: a hand behind the head or on the nape
+    lies in a basin that neither the natural posture nor the arm seeds reach); only for
+    a problem that may restart and collides."""
     restarts = solver.restarts if problem.restarts is None else problem.restarts
-    if result.converged or not problem.wide or restarts < 2 or not problem.collide:
-        return result
-    solve_wide = functools.partial(solver._solve_once, wide=True)
-    wide = head_on_first(solve_wide, problem, q0, solver.preference_cost)
-    if not wide.converged:
-        return result
-    return dataclasses.replace(
-        wide, iterations=wide.iterations + result.iterations, time=wide.time + result.time
-    )
+    return problem.wide and restarts >= 2 and problem.collide
 
 
 def _wide_attempts(solver: Solver, plan, problem, q_start, history) -> tuple[Attempt, int, int]:

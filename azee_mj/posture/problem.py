@@ -71,9 +71,9 @@ class IKProblem:
         own); from 2 up, the solver's ``seeder`` adds its starts to them.
       bounds: (lower, upper), each (nq,): further bounds of the joints inside their ranges
         [rad or m] (e.g. within reach of a later posture), None = none.
-      wide: when every start leaves the problem unmet, also start from the limbs anywhere
-        in their ranges (a last resort: a hand behind the head lies where no arm seed
-        begins); a meet from there is kept only if it keeps the preferences.
+      wide: start from the limbs anywhere in their ranges instead of the usual starts (a
+        last resort, asked after those missed: a hand behind the head lies where no arm
+        seed begins); a meet from there is kept only if it keeps the preferences.
     """
 
     constraints: tuple[Constraint, ...]

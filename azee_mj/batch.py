@@ -134,12 +134,12 @@ def fingerprint(
 ) -> str:
     """The options a rollout was realized with, as one line that the same options always
     give and other options never do, e.g. ``fps=50.0;mode=multitrack;rest=1;hold=0.3;
-    tempo=1.0``: ``fps`` [frames/s], the ``mode``, the ``motion`` options (``rest``,
-    ``hold`` [s], ``tempo``; defaults filled in), the sign directories ``lexicon`` an
+    tempo=1.0;gap=1.5``: ``fps`` [frames/s], the ``mode``, the ``motion`` options (``rest``,
+    ``hold`` [s], ``tempo``, ``rest_gap`` [s]; defaults filled in), the sign directories ``lexicon`` an
     ``.azee`` score was compiled with (absolute paths; their contents are not read),
     ``dynamics`` (the physics mode) and automatic ``blinks`` (seed, rate per minute).
     ``--resume`` realizes again an output whose recorded fingerprint differs."""
-    from azee_mj.blend import REST_HOLD
+    from azee_mj.blend import REST_GAP, REST_HOLD
 
     m = dict(motion or {})
     parts = [
@@ -148,6 +148,7 @@ def fingerprint(
         f"rest={int(bool(m.get('rest', True)))}",
         f"hold={float(m.get('hold', REST_HOLD))!r}",
         f"tempo={float(m.get('tempo', 1.0))!r}",
+        f"gap={float(m.get('rest_gap', REST_GAP))!r}",
     ]
     if dynamics:
         parts.append("dynamics=1")

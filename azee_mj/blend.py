@@ -53,6 +53,13 @@ MIN_RELAX = 0.5
 MAX_REST_MOVE = 1.2
 #: How long a track with no further block holds its last posture before relaxing [s].
 REST_HOLD = 0.3
+#: The shortest gap [s] between two holds of a track in which it returns to rest and
+#: comes back (a *pause*; shorter gaps hold the posture, as a signer keeps a hand up
+#: between two nearby signs). Configurable: ``realize(rest_gap=...)``, ``--rest-gap``.
+REST_GAP = 1.5
+#: The least time [s] a pausing track stays at rest between its return and its lead-in:
+#: a gap that cannot fit the hold, the return, this and the lead-in holds the posture.
+REST_STAY = 0.2
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -90,6 +97,24 @@ class Hold:
 
 
 @dataclasses.dataclass(frozen=True)
+class Pause:
+    """A track's return to rest in a long gap between two of its holds, and its lead-in
+    back into the next.
+
+    Attributes:
+      at: when [s] it starts back to rest (after the hold before, and its carried keys).
+      relax: duration [s] of the return to rest.
+      lead: duration [s] of the lead-in from rest, ending as the next hold starts.
+      until: when [s] the next hold starts.
+    """
+
+    at: float
+    relax: float
+    lead: float
+    until: float
+
+
+@dataclasses.dataclass(frozen=True)
 class Rest:
     """How one track leaves and returns to rest (the neutral posture).
 
@@ -98,11 +123,39 @@ class Rest:
         starts; None: the track starts in its first hold's posture (no lead-in).
       relax_at: when [s] it starts back to rest after its last hold; None: it stays.
       relax: duration [s] of that return.
+      pauses: its returns to rest between holds (:func:`pause_between`), in time order.
     """
 
     lead: float | None
     relax_at: float | None = None
     relax: float = 0.0
+    pauses: tuple[Pause, ...] = ()
+
+
+def pause_between(
+    end: float,
+    start: float,
+    hold: float,
+    relax: float,
+    lead: float,
+    shortest: float = REST_GAP,
+    busy=(),
+) -> Pause | None:
+    """A track's pause at rest between a hold ending at ``end`` [s] and its next hold
+    starting at ``start`` [s], or None (it holds its posture through the gap).
+
+    It pauses when the gap is at least ``shortest`` [s] and fits, in order: the ``hold``
+    [s] before relaxing, the return to rest (``relax`` [s]), :data:`REST_STAY` at rest
+    and the lead-in back (``lead`` [s], ending as the next hold starts). ``busy``:
+    ``(start, end)`` [s] of other tracks' keys this track carries (a hand held at the
+    chin rides on the head); it starts back to rest only after those in the gap end."""
+    at = end + hold
+    for s, e in busy:
+        if s < start - EPS and e > end + EPS:
+            at = max(at, e)
+    if start - end < shortest - EPS or start - at < relax + REST_STAY + lead - EPS:
+        return None
+    return Pause(at, relax, lead, start)
 
 
 def rest_duration(distance: float, speed: float, shortest: float) -> float:
@@ -211,8 +264,8 @@ def track_curve(
     """Joint values (T, len(dofs)) of one track at ``times`` [s] (ascending), from the neutral
     posture ``home`` (nq,) through its ``keys``, and a (T,) flag where it blends (see
     :func:`blend_window`). With ``rest``, the first blend is the track's lead-in (``rest.lead``
-    long, or none: it starts in its first posture) and it returns to ``home`` after its last
-    hold at ``rest.relax_at`` (see :class:`Rest`). ``out``: where to write the joint values
+    long, or none: it starts in its first posture), it returns to ``home`` and back in each
+    of its ``rest.pauses`` and after its last hold at ``rest.relax_at`` (see :class:`Rest`). ``out``: where to write the joint values
     (anything taking ``out[a:b] = values``, e.g. :class:`Columns` of the frames; returned)
     instead of a new array."""
     holds = holds_of(keys, dofs)
@@ -222,11 +275,17 @@ def track_curve(
     out[:] = start
     blending = np.zeros(len(times), bool)
     prev, prev_q, blends = None, start, []
+    pauses = {p.until: p for p in rest.pauses} if rest is not None else {}
     for hold in holds:
+        pause = pauses.get(hold.start) if prev is not None else None
         if prev is None and rest is not None:
             w0, w1 = hold.start - (rest.lead or 0.0), hold.start
             if w1 > w0:  # no earlier than a carried hold ends, as any blend
                 w0 = after_carried(w0, w1, carried)
+        elif pause is not None:  # back to rest, and from rest into this hold
+            blends.append((pause.at, pause.at + pause.relax, prev_q, home[dofs]))
+            prev_q = home[dofs]
+            w0, w1 = pause.until - pause.lead, pause.until
         else:
             w0, w1 = blend_window(hold, prev, prev_q, flattened, carried)
         blends.append((w0, w1, prev_q, hold.q))

@@ -322,17 +322,20 @@ def _not_empty(args) -> None:
 
 
 def _motion(args) -> dict:
-    """The realizer's motion options from ``--no-rest``, ``--rest-hold``, ``--tempo``
-    (checked here: a bad one is exit 2 before any work)."""
+    """The realizer's motion options from ``--no-rest``, ``--rest-hold``, ``--rest-gap``,
+    ``--tempo`` (checked here: a bad one is exit 2 before any work)."""
     import math
 
-    from azee_mj.blend import REST_HOLD
+    from azee_mj.blend import REST_GAP, REST_HOLD
 
     hold = REST_HOLD if args.rest_hold is None else args.rest_hold
+    gap = REST_GAP if args.rest_gap is None else args.rest_gap
     for opt, v, lo, hi in (("--tempo", args.tempo, 0.1, 10.0), ("--rest-hold", hold, 0, 10)):
         if not (math.isfinite(v) and lo <= v <= hi):
             raise AzeeError(f"{opt} must be a number from {lo:g} to {hi:g}, got {v:g}")
-    return {"rest": not args.no_rest, "hold": hold, "tempo": args.tempo}
+    if not gap >= 0.0:
+        raise AzeeError(f"--rest-gap must be a number of seconds from 0 (inf: never), got {gap:g}")
+    return {"rest": not args.no_rest, "hold": hold, "tempo": args.tempo, "rest_gap": gap}
 
 
 def _with_blinks(score, args):
@@ -665,6 +668,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="seconds a hand, the head or the trunk holds its last posture before relaxing "
         "to rest (default 0.3)",
+    )
+    r.add_argument(
+        "--rest-gap",
+        type=float,
+        metavar="S",
+        help="a hand, the head or the trunk whose next block is at least S seconds away "
+        "returns to rest in between and comes back (default 1.5; inf: never)",
     )
     r.add_argument(
         "--tempo",

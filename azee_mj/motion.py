@@ -32,16 +32,20 @@ from azee_mj.blend import (
     MIN_LEAD,
     MIN_RELAX,
     MINJERK_PEAK,
+    REST_GAP,
     REST_HOLD,
     REST_JOINT_SPEED,
     REST_SPEED,
+    REST_STAY,
     SAME_POSTURE,
     Columns,
     Hold,
     Key,
+    Pause,
     Rest,
     holds_of,
     minjerk,
+    pause_between,
     rest_duration,
     track_curve,
 )
@@ -74,15 +78,18 @@ __all__ = [
     "MIN_BLEND",
     "MIN_LEAD",
     "MIN_RELAX",
+    "REST_GAP",
     "REST_HOLD",
     "REST_JOINT_SPEED",
     "REST_SPEED",
+    "REST_STAY",
     "SAME_POSTURE",
     "CurvePreference",
     "Hold",
     "Key",
     "Mode",
     "Motion",
+    "Pause",
     "Rest",
     "arc_through",
     "minjerk",
@@ -356,16 +363,24 @@ class Motion:
 
     With ``rest`` (multitrack only), every track comes from rest (the neutral posture) into
     its first posture in a lead-in timed from its distance, and returns to rest ``hold``
-    seconds after its last block; the rollout's time axis gains the lead-in before the
-    score's time 0 (:attr:`lead_frames`) and the return after its end. Without ``rest``
-    each track starts in its first posture and keeps its last one (the score's time axis)."""
+    seconds after its last block; in a gap of ``gap`` seconds or more between two of its
+    blocks it returns to rest and comes back (a pause, :func:`~azee_mj.blend.pause_between`).
+    The rollout's time axis gains the lead-in before the score's time 0 (:attr:`lead_frames`)
+    and the return after its end. Without ``rest`` each track starts in its first posture
+    and keeps its last one (the score's time axis)."""
 
     def __init__(
-        self, adapter: IKAdapter, mode: Mode, fps: float, rest: bool = True, hold: float = REST_HOLD
+        self,
+        adapter: IKAdapter,
+        mode: Mode,
+        fps: float,
+        rest: bool = True,
+        hold: float = REST_HOLD,
+        gap: float = REST_GAP,
     ):
         self.adapter, self.schedule = adapter, adapter.schedule
         self.mode, self.fps = mode, fps
-        self.rest, self.hold = rest and mode is Mode.MULTITRACK, hold
+        self.rest, self.hold, self.gap = rest and mode is Mode.MULTITRACK, hold, gap
         #: Per track, its lead-in and return to rest (empty: none planned yet, or flattened).
         self.rests: dict[str, Rest] = {}
         #: Frames of lead-in before the score's time 0; the rollout ends at ``end`` [s]
@@ -385,9 +400,10 @@ class Motion:
         n = frame_count(self.end + self.score_start, self.fps)
         return (np.arange(n) - self.lead_frames) / self.fps
 
-    def plan(self, keys: dict[str, list[Key]], carried: dict[str, list[float]]) -> None:
-        """Each track's lead-in and return to rest (:attr:`rests`), and the time axis they
-        need (:attr:`lead_frames`, :attr:`end`); ``carried``: :meth:`carried` of ``keys``."""
+    def plan(self, keys: dict[str, list[Key]], carried: dict[str, list[tuple]]) -> None:
+        """Each track's lead-in, pauses at rest and return to rest (:attr:`rests`), and the
+        time axis they need (:attr:`lead_frames`, :attr:`end`); ``carried``:
+        :meth:`carried_spans` of ``keys``."""
         sched = self.schedule
         self.rests, self.lead_frames, self.end = {}, 0, sched.score.duration
         if self.mode is not Mode.MULTITRACK:
@@ -401,12 +417,16 @@ class Motion:
                 self.rests[t] = Rest(None)
                 continue
             first, last = holds[0], holds[-1]
-            r = Rest(self.move_time(t, None, first.q, MIN_LEAD))
+            r = Rest(
+                self.move_time(t, None, first.q, MIN_LEAD), pauses=self.pauses(t, holds, carried[t])
+            )
             home = sched.home[sched.track_dofs[t]]
             if not np.allclose(last.q, home, atol=SAME_POSTURE):
-                after = [e for e in carried[t] if e > last.end]
+                after = [e for _, e in carried[t] if e > last.end]
                 at = max([last.end + self.hold, *after])
-                r = Rest(r.lead, at, self.move_time(t, last.q, None, MIN_RELAX))
+                r = dataclasses.replace(
+                    r, relax_at=at, relax=self.move_time(t, last.q, None, MIN_RELAX)
+                )
                 end = max(end, at + r.relax)
             self.rests[t] = r
             lead = max(lead, r.lead - first.start)
@@ -414,15 +434,45 @@ class Motion:
         self.lead_frames = int(np.ceil(lead * self.fps - 1e-6))
         self.end = end if end <= sched.score.duration else np.ceil(end * self.fps) / self.fps
 
+    def pauses(self, track: str, holds: list[Hold], busy) -> tuple[Pause, ...]:
+        """The pauses at rest of ``track`` between its ``holds`` (:func:`pause_between`,
+        gaps of at least :attr:`gap`; ``busy``: its :meth:`carried_spans`): not from or
+        into a posture at rest already, nor into a return to neutral."""
+        home = self.schedule.home[self.schedule.track_dofs[track]]
+        out = []
+        for a, b in itertools.pairwise(holds):
+            if b.start - a.end < self.gap or b.relax:
+                continue
+            if np.allclose(a.q, home, atol=SAME_POSTURE) or np.allclose(
+                b.q, home, atol=SAME_POSTURE
+            ):
+                continue
+            relax = self.move_time(track, a.q, None, MIN_RELAX)
+            lead = self.move_time(track, None, b.q, MIN_LEAD)
+            p = pause_between(a.end, b.start, self.hold, relax, lead, self.gap, busy)
+            if p is not None:
+                out.append(p)
+        return tuple(out)
+
     def tie_hands(self, keys) -> None:
         """A hand shape forms while its arm travels: a hand track whose first posture starts
-        with its arm's takes the arm's lead-in when that is longer."""
+        with its arm's takes the arm's lead-in when that is longer, and so does a lead-in
+        back from a pause when it still fits after the hand's return to rest."""
         for t, r in list(self.rests.items()):
             arm = self.rests.get(t.replace("hand", "arm"))
             if not t.startswith("hand") or arm is None or r.lead is None:
                 continue
             if keys[t][0].start == keys[t.replace("hand", "arm")][0].start:
-                self.rests[t] = dataclasses.replace(r, lead=max(r.lead, arm.lead))
+                r = dataclasses.replace(r, lead=max(r.lead, arm.lead))
+            back = {p.until: p.lead for p in arm.pauses}
+            pauses = tuple(
+                dataclasses.replace(p, lead=back[p.until])
+                if back.get(p.until, 0.0) > p.lead
+                and p.until - back[p.until] >= p.at + p.relax + REST_STAY
+                else p
+                for p in r.pauses
+            )
+            self.rests[t] = dataclasses.replace(r, pauses=pauses)
 
     def move_time(self, track: str, qa, qb, shortest: float) -> float:
         """Duration [s] of a movement of ``track`` between its joint values ``qa`` and
@@ -447,8 +497,9 @@ class Motion:
     def frames(self, keys: dict[str, list[Key]]) -> np.ndarray:
         """(T, nq) frames through the key postures ``keys`` (per track), on :meth:`times`."""
         sched = self.schedule
-        carried = self.carried(keys)
-        self.plan(keys, carried)
+        spans = self.carried_spans(keys)
+        carried = {t: sorted(e for _, e in v) for t, v in spans.items()}
+        self.plan(keys, spans)
         times = self.times()
         q = np.tile(sched.home, (len(times), 1))
         names = list(sched.track_joints)
@@ -473,18 +524,18 @@ class Motion:
         q = solver.solve(q, times, moving, names, keys)
         return Pacer(self.adapter, self.fps).pace(q, times, moving, names, solver.held_frames)
 
-    def carried(self, keys: dict[str, list[Key]]) -> dict[str, list[float]]:
-        """Per track, the end times [s] of other tracks' keys with a constraint that names
-        a body the track moves (a hand held in front of the chin is carried by the head
-        track), sorted: each key's carriers found once for every track."""
-        out: dict[str, list[float]] = {t: [] for t in keys}
+    def carried_spans(self, keys: dict[str, list[Key]]) -> dict[str, list[tuple]]:
+        """Per track, the ``(start, end)`` [s] of other tracks' keys with a constraint that
+        names a body the track moves (a hand held in front of the chin is carried by the
+        head track): each key's carriers found once for every track."""
+        out: dict[str, list[tuple]] = {t: [] for t in keys}
         for t, tk in keys.items():
             for k in tk:
                 moved = set().union(*(self.schedule.moved_by(c) for c in k.cons))
                 for tr in moved - {t}:
                     if tr in out:
-                        out[tr].append(k.end)
-        return {t: sorted(v) for t, v in out.items()}
+                        out[tr].append((k.start, k.end))
+        return out
 
     def flat_transpaths(self, q: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Flattened mode: a transpath adds keyframes along its path (the 2018 method),

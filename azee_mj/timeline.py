@@ -40,7 +40,7 @@ import numpy as np
 from azee_mj import heap, ik, mirror
 from azee_mj import score as sc
 from azee_mj.anatomy import ACROSS
-from azee_mj.blend import REST_HOLD
+from azee_mj.blend import REST_GAP, REST_HOLD
 from azee_mj.errors import AzeeError
 from azee_mj.findings import constraint_findings, speed_findings
 from azee_mj.ikadapter import IKAdapter
@@ -109,6 +109,7 @@ def realize(
     rest: bool = True,
     hold: float = REST_HOLD,
     tempo: float = 1.0,
+    rest_gap: float = REST_GAP,
 ) -> Rollout:
     """Realize a score: the motion of the signer, frame ``k`` at ``k / fps`` [s].
 
@@ -126,6 +127,9 @@ def realize(
         starts in its first posture and keeps its last.
       hold: how long a track holds its last posture before relaxing [s].
       tempo: play the score this many times as fast (block times divided by it).
+      rest_gap: with ``rest``, a track whose next block starts at least this long [s]
+        after its last one ends returns to rest in between and comes back (when the gap
+        also fits ``hold``, both movements and a moment at rest); ``inf``: never.
 
     Returns:
       A :class:`Rollout`: ``qpos`` (T, nq), ``site_pos`` (T, S, 3), residual traces,
@@ -135,6 +139,7 @@ def realize(
     if not isinstance(score, sc.Score):
         score = sc.load_score(score)
     score = at_tempo(score, tempo, hold)
+    check_gap(rest_gap)
     mode, fps = Mode(mode), check_fps(fps, "fps")
     if rest and mode is Mode.MULTITRACK:
         check_room(score.duration, fps, hold)
@@ -152,7 +157,7 @@ def realize(
     release()  # the solves' scratch, freed among the keys that live on
     n_key = len(adapter.results)
     tick(0.4)
-    motion = Motion(adapter, mode, fps, rest, hold)
+    motion = Motion(adapter, mode, fps, rest, hold, rest_gap)
     q = motion.frames(keys)
     tick(0.8)
     times, lead = motion.times(), motion.lead_frames
@@ -207,6 +212,14 @@ def at_tempo(score: sc.Score, tempo: float, hold: float) -> sc.Score:
     if not (np.isfinite(hold) and 0.0 <= hold <= 10.0):
         raise AzeeError(f"the rest hold must be from 0 to 10 s, got {hold!r}")
     return score.at_tempo(tempo) if tempo != 1.0 else score
+
+
+def check_gap(rest_gap: float) -> None:
+    """Refuse a rest gap [s] that is not a number from 0 (``inf``: never pause)."""
+    if not rest_gap >= 0.0:  # NaN too
+        raise AzeeError(
+            f"the rest gap must be a number of seconds from 0 (inf: never), got {rest_gap!r}"
+        )
 
 
 def trilled_blocks(score: sc.Score) -> set[str]:

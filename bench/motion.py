@@ -9,7 +9,9 @@ two pauses; see ``movement.segments``): duration, path length, peak and mean spe
 LDLJ, speed peaks and the two-thirds power-law exponent on curved paths. Each movement is
 labelled ``lead-in`` (it ends by the first block's start), ``retraction`` (it starts after
 the last block's end), ``relax`` (its arm has no further block: the realizer's return to
-rest) or ``sign``; the first three are timed by the realizer, the last by the score. Per
+rest), ``pause-relax`` / ``pause-lead-in`` (inside a gap between two of its arm's blocks,
+ending / starting with the wrist at rest: a pause at rest, ``blend.pause_between``) or
+``sign``; all but the last are timed by the realizer, the last by the score. Per
 rollout: the frames at which a constraint active in its block is outside its tolerance, the
 fastest joint [rad/s] (overall and where the realizer chose the timing) and the findings.
 ``--scores DIR`` adds every ``*.json`` score of a folder (e.g. ``bench/data/motion``).
@@ -69,9 +71,15 @@ def scores(names: list[str], with_sentence: bool, extra: Path | None = None) -> 
     return out
 
 
+#: How near [m] its rest position a wrist is at the end of a pause's return to rest.
+AT_REST = 5e-3
+
+
 def label(
-    m: mv.Movement, t: np.ndarray, first_start: float, last_end: float, arm_end: float
+    m: mv.Movement, t: np.ndarray, first_start: float, last_end: float, arm_end: float, rest=None
 ) -> str:
+    """The movement's phase; ``rest``: ``(gaps, at_rest)``, the ``(end, start)`` [s] of the
+    gaps between its arm's blocks and (T,) whether the wrist is at its rest position."""
     slack = 2.0 / FPS  # a movement comes to rest within two frames of its block
     if t[m.last] <= first_start + slack:
         return "lead-in"
@@ -79,7 +87,26 @@ def label(
         return "retraction"
     if t[m.first] >= arm_end - slack:
         return "relax"
+    gaps, at_rest = rest if rest is not None else ((), None)
+    for a, b in gaps:
+        if t[m.first] >= a - slack and t[m.last] <= b + slack:
+            if at_rest[m.last] and not at_rest[m.first]:
+                return "pause-relax"
+            if at_rest[m.first] and not at_rest[m.last]:
+                return "pause-lead-in"
     return "sign"
+
+
+def rest_of(arm, pos: np.ndarray) -> tuple[list, np.ndarray]:
+    """The gaps ``(end, start)`` [s] between the blocks of an arm's schedule intervals
+    ``arm``, and (T,) whether its wrist positions ``pos`` are at rest (frame 0's)."""
+    ivs = sorted((i.start, i.end) for i in arm)
+    gaps, reach = [], None
+    for s, e in ivs:
+        if reach is not None and s > reach:
+            gaps.append((reach, s))
+        reach = e if reach is None else max(reach, e)
+    return gaps, np.linalg.norm(pos - pos[0], axis=1) < AT_REST
 
 
 def chosen_frames(r, first: float, last: float) -> np.ndarray:
@@ -107,10 +134,11 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
         profiles[site] = mv.speed(pos, FPS)
         arm = r.schedule.get(f"arm_{site[-1]}", ())
         arm_end = max((i.end for i in arm), default=first)
+        rest = rest_of(arm, pos)
         for m in mv.movements(pos, FPS):
             rec = {
                 "site": site,
-                "phase": label(m, r.time, first, last, arm_end),
+                "phase": label(m, r.time, first, last, arm_end, rest),
                 "t0": float(r.time[m.first]),
                 "t1": float(r.time[m.last]),
             }
@@ -119,6 +147,9 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
     step = np.abs(np.diff(r.qpos, axis=0)).max(axis=1) * FPS if len(r.time) > 1 else np.zeros(1)
     joint = float(step.max())
     own = chosen_frames(r, first, last)
+    for m in moves:  # and the pauses' movements
+        if m["phase"].startswith("pause"):
+            own |= (r.time >= m["t0"] - 1e-9) & (r.time <= m["t1"] + 1e-9)
     own = own[1:] | own[:-1] if len(own) > 1 else own
     rec = {
         "name": name,

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from azee_mj.batch import Job, Outcome, fingerprint, plan, realize_many
-from azee_mj.blend import REST_HOLD
+from azee_mj.blend import REST_GAP, REST_HOLD
 from azee_mj.cli import main
 from azee_mj.corpus import FIELDS, Manifest, Progress, read_manifest, remove_temporaries_of
 from azee_mj.errors import AzeeError
@@ -322,12 +322,13 @@ def test_resume_realizes_again_what_other_options_made(tmp_path, capsys):
     plain = fingerprint(25.0)
     assert rollout_options(out / "good.npz") == rollout_options(out / "five.npz") == plain
     assert {r["options"] for r in read_manifest(manifest)} == {plain}
-    for extra in (["--tempo", "2"], ["--no-rest"], ["--rest-hold", "1.5"], ["--mode", "flattened"]):
+    options = (["--tempo", "2"], ["--no-rest"], ["--rest-hold", "1.5"], ["--rest-gap", "3"])
+    for extra in (*options, ["--mode", "flattened"]):
         assert run(*extra) == {"good.npz", "five.npz"}, extra
         assert run(*extra) == set(), extra
     now = fingerprint(25.0, "flattened")
     assert {r["options"] for r in read_manifest(manifest)} == {now}
-    assert now == f"fps=25.0;mode=flattened;rest=1;hold={REST_HOLD!r};tempo=1.0"
+    assert now == f"fps=25.0;mode=flattened;rest=1;hold={REST_HOLD!r};tempo=1.0;gap={REST_GAP!r}"
     # sign directories count for an expression only, which is compiled with them
     lexicon = ["--mode", "flattened", "--lexicon", str(signs)]
     assert run(*lexicon) == {"five.npz"}

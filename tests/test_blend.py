@@ -12,14 +12,19 @@ from azee_mj.blend import (
     MAX_JOINT_SPEED,
     MIN_BLEND,
     MINJERK_PEAK,
+    REST_GAP,
+    REST_STAY,
     Hold,
     Key,
+    Pause,
+    Rest,
     blend_time,
     blend_window,
     goal_key,
     holds_of,
     minjerk,
     next_still,
+    pause_between,
     track_curve,
 )
 from azee_mj.kinematics import SitePos
@@ -182,3 +187,55 @@ def test_goal_key_and_next_still():
     assert goal_key(keys, 2, DOFS) is None
     moving = np.array([[1, 0], [1, 1], [0, 1], [0, 1]], bool)
     np.testing.assert_array_equal(next_still(moving), [[2, 0], [2, -1], [2, -1], [3, -1]])
+
+
+def test_a_long_gap_is_a_pause_at_rest_timed_from_its_moves():
+    # hold 0.3, return 0.8, at rest, lead-in 0.6, ending as the next hold starts
+    p = pause_between(1.0, 4.0, 0.3, 0.8, 0.6)
+    assert p == Pause(1.3, 0.8, 0.6, 4.0)
+    assert p.at + p.relax + REST_STAY <= p.until - p.lead
+
+
+def test_a_gap_shorter_than_the_threshold_or_the_moves_holds_the_posture():
+    assert pause_between(1.0, 1.0 + REST_GAP - 0.01, 0.0, 0.5, 0.3) is None  # below the gap
+    assert pause_between(1.0, 1.0 + REST_GAP, 0.0, 0.5, 0.3) is not None  # at it
+    # the threshold is the caller's: a larger one holds where the default pauses
+    assert pause_between(1.0, 4.0, 0.3, 0.8, 0.6, shortest=3.5) is None
+    assert pause_between(1.0, 4.0, 0.3, 0.8, 0.6, shortest=0.0) is not None
+    # long enough by the threshold, but the moves and the stay at rest do not fit
+    need = 0.3 + 1.2 + REST_STAY + 1.2
+    assert pause_between(1.0, 1.0 + need - 0.01, 0.3, 1.2, 1.2, shortest=0.0) is None
+    assert pause_between(1.0, 1.0 + need, 0.3, 1.2, 1.2, shortest=0.0) is not None
+
+
+def test_a_pause_waits_for_the_keys_it_carries_in_the_gap():
+    # a key of another track on this one over [1.0, 2.5] in the gap: the return after it
+    assert pause_between(1.0, 5.0, 0.3, 0.5, 0.5, busy=[(1.0, 2.5)]).at == 2.5
+    # one that leaves too little time after it: no pause
+    assert pause_between(1.0, 5.0, 0.3, 0.5, 0.5, busy=[(2.0, 4.5)]) is None
+    # those before or after the gap (touching it) do not count
+    p = pause_between(1.0, 5.0, 0.3, 0.5, 0.5, busy=[(0.0, 1.0), (5.0, 6.0)])
+    assert p.at == 1.3
+
+
+def test_track_curve_pauses_at_rest_between_two_far_holds():
+    home = np.zeros(3)
+    keys = [_key(0.2, 0.6, [0.5, -0.5]), _key(3.0, 3.4, [-0.3, 0.2])]
+    times = np.arange(0, 200) / 50.0
+    pause = Pause(0.9, 0.5, 0.4, 3.0)
+    q, blending = track_curve(keys, times, DOFS, home, rest=Rest(None, pauses=(pause,)))
+    held = (times < 0.6) & (times >= 0.2)
+    np.testing.assert_allclose(q[held], [[0.5, -0.5]] * int(held.sum()))
+    still = (times >= 0.6) & (times < 0.9)  # the hold before relaxing
+    np.testing.assert_allclose(q[still], [[0.5, -0.5]] * int(still.sum()))
+    at_rest = (times >= 1.4) & (times < 2.6)
+    np.testing.assert_allclose(q[at_rest], 0.0, atol=1e-12)
+    assert not blending[at_rest].any() and blending[(times >= 0.9) & (times < 1.4)].all()
+    assert blending[(times >= 2.6) & (times < 3.0)].all()
+    np.testing.assert_allclose(q[times >= 3.0], [[-0.3, 0.2]] * int((times >= 3.0).sum()))
+    # the return starts from the held posture and ends at rest
+    back = q[(times >= 0.9) & (times <= 1.4)]
+    np.testing.assert_allclose(back[[0, -1]], [[0.5, -0.5], [0.0, 0.0]], atol=1e-12)
+    # without the pause the same keys blend straight from one hold into the next
+    q, _ = track_curve(keys, times, DOFS, home, rest=Rest(None))
+    assert np.abs(q[at_rest]).min() > 0.0

@@ -93,6 +93,29 @@ def test_a_hand_with_no_further_block_relaxes(solver):
     assert all(t.ok for t in r.traces)
 
 
+def test_a_hand_whose_next_block_is_far_pauses_at_rest_and_meets_it(solver):
+    weak = {"type": "place", "site": "@WR(w)", "at": _beside("lat(w)")}
+    strong = {"type": "place", "site": "@WR(s)", "at": _beside("lat(s)")}
+    blocks = cstr("W1", 0.2, 0.6, weak), cstr("W2", 3.4, 3.8, weak), cstr("S", 0.2, 4.0, strong)
+    score = envelope(sync("S", 4.0, *blocks))
+    r = timeline.realize(score, solver=solver)
+    arm = [solver.model.jnt_qposadr[solver.joint_id(j)] for j in DEFAULT_MAP.tracks["arm_L"]]
+    mid = round((r.score_start + 2.0) * r.fps)  # halfway through the 2.8 s gap: at rest
+    np.testing.assert_allclose(r.qpos[mid, arm], solver.natural[arm], atol=1e-9)
+    assert all(t.ok for t in r.traces)  # both weak blocks met, at their times
+    spans = {i.block: (i.start - r.score_start, i.end - r.score_start) for i in r.schedule["arm_L"]}
+    assert spans["S.W2"] == pytest.approx((3.4, 3.8))
+    # the return and the lead-in back: each one bell at a human speed
+    moves = [m for m, t0, t1 in _wrist_moves(r, "WR_L") if 0.6 < t0 - r.score_start < 3.4]
+    assert len(moves) == 2
+    for m in moves:
+        assert m.peaks == 1 and m.peak_speed <= 3.0 and -1.6 <= m.sparc <= -1.35
+    # a threshold above the gap: the hand holds its posture through it, as before
+    held = timeline.realize(score, solver=solver, rest_gap=3.0)
+    assert np.abs(held.qpos[mid, arm] - solver.natural[arm]).max() > 0.1
+    assert all(t.ok for t in held.traces)
+
+
 def test_tempo_scales_the_scores_time(solver):
     slow = timeline.realize(GOOD, solver=solver, tempo=0.5)
     spans = {
@@ -133,6 +156,12 @@ def test_bad_motion_options_exit_2(tmp_path, capsys):
     assert main(["realize", str(GOOD), "-o", out, "--tempo", "0"]) == 2
     assert "--tempo must be a number from 0.1 to 10, got 0" in capsys.readouterr().err
     assert main(["realize", str(GOOD), "-o", out, "--rest-hold", "-1"]) == 2
+    capsys.readouterr()
+    assert main(["realize", str(GOOD), "-o", out, "--rest-gap", "-1"]) == 2
+    said = "--rest-gap must be a number of seconds from 0 (inf: never), got -1"
+    assert said in capsys.readouterr().err
+    with pytest.raises(Exception, match="the rest gap must be a number of seconds from 0"):
+        timeline.realize(GOOD, rest_gap=float("nan"))
     assert not Path(out).exists()
 
 

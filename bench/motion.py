@@ -50,9 +50,11 @@ from physics import line as physics_line
 from realize import SIGNS, sentence
 
 from azee_mj import movement as mv
+from azee_mj.model import load_model
 from azee_mj.physics import PhysicsError
 from azee_mj.schedule import make_solver
 from azee_mj.score import load_score
+from azee_mj.sites import DEFAULT_MAP
 from azee_mj.timeline import realize
 
 ROOT = HERE.parent
@@ -123,6 +125,13 @@ def leaving_frames(rollout) -> int:
     return int(bad.sum())
 
 
+def side_columns(side: str) -> list[int]:
+    """The qpos addresses of the bundled signer's arm and hand joints of ``side`` (R, L)."""
+    model = load_model()
+    names = DEFAULT_MAP.tracks[f"arm_{side}"] + DEFAULT_MAP.tracks[f"hand_{side}"]
+    return [int(model.jnt_qposadr[model.joint(j).id]) for j in names]
+
+
 def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
     r = realize(load_score(score_dict), fps=FPS)
     spans = [(i.start, i.end) for v in r.schedule.values() for i in v]
@@ -147,10 +156,14 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
     step = np.abs(np.diff(r.qpos, axis=0)).max(axis=1) * FPS if len(r.time) > 1 else np.zeros(1)
     joint = float(step.max())
     own = chosen_frames(r, first, last)
-    for m in moves:  # and the pauses' movements
-        if m["phase"].startswith("pause"):
-            own |= (r.time >= m["t0"] - 1e-9) & (r.time <= m["t1"] + 1e-9)
     own = own[1:] | own[:-1] if len(own) > 1 else own
+    chosen = float(step[own].max()) if own.any() else 0.0
+    for m in moves:  # a pause's movements: its arm's and hand's joints (the other signs)
+        if m["phase"].startswith("pause"):
+            cols = side_columns(m["site"][-1])
+            f0, f1 = np.searchsorted(r.time, (m["t0"] - 1e-9, m["t1"] + 1e-9))
+            turn = np.abs(np.diff(r.qpos[f0 : f1 + 1, cols], axis=0)).max() * FPS
+            chosen = max(chosen, float(turn))
     rec = {
         "name": name,
         "duration_s": float(r.time[-1]),
@@ -158,7 +171,7 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
         "score_start": float(getattr(r, "score_start", 0.0)),
         "leaving_frames": leaving_frames(r),
         "max_joint_speed": joint,
-        "max_joint_speed_chosen": float(step[own].max()) if own.any() else 0.0,
+        "max_joint_speed_chosen": chosen,
         "findings": [f.describe() for f in getattr(r, "findings", ())],
         "peak_wrist_speed": max((m["peak_speed"] for m in moves), default=0.0),
         "movements": moves,

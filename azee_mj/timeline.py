@@ -136,13 +136,7 @@ def realize(
       findings, stats.
     """
     t_start = _time.perf_counter()
-    if not isinstance(score, sc.Score):
-        score = sc.load_score(score)
-    score = at_tempo(score, tempo, hold)
-    check_gap(rest_gap)
-    mode, fps = Mode(mode), check_fps(fps, "fps")
-    if rest and mode is Mode.MULTITRACK:
-        check_room(score.duration, fps, hold)
+    score, mode, fps = checked(score, mode, fps, rest, hold, tempo, rest_gap)
     smap = signer_map or DEFAULT_MAP
     solver = solver or make_solver(signer_map=smap)
     tick = progress or (lambda f: None)
@@ -212,6 +206,19 @@ def at_tempo(score: sc.Score, tempo: float, hold: float) -> sc.Score:
     if not (np.isfinite(hold) and 0.0 <= hold <= 10.0):
         raise AzeeError(f"the rest hold must be from 0 to 10 s, got {hold!r}")
     return score.at_tempo(tempo) if tempo != 1.0 else score
+
+
+def checked(score, mode, fps, rest, hold, tempo, rest_gap) -> tuple[sc.Score, Mode, float]:
+    """The score (loaded, at its ``tempo``), the mode and the fps of :func:`realize`, after
+    checking every option it takes (a clean :class:`AzeeError` naming a bad one)."""
+    if not isinstance(score, sc.Score):
+        score = sc.load_score(score)
+    score = at_tempo(score, tempo, hold)
+    check_gap(rest_gap)
+    mode, fps = Mode(mode), check_fps(fps, "fps")
+    if rest and mode is Mode.MULTITRACK:
+        check_room(score.duration, fps, hold)
+    return score, mode, fps
 
 
 def check_gap(rest_gap: float) -> None:

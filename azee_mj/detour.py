@@ -50,7 +50,12 @@ ALTERNATIVES = ((1.0, True, False), (1.5, True, False), (1.0, True, True), (1.25
 SHORTER = 0.95
 #: A grown bend's bell is at least this high where it pushes a frame out: a frame near an
 #: end, where the bell is low, would otherwise ask for a far via.
-GROWN_FLOOR = 0.3
+GROWN_FLOOR = 0.5
+#: A grown bend's bell tops this far (a fraction of the blend's time) from its ends, at
+#: least: a bell that tops near an end rises (or falls) in a few frames, a speed peak of
+#: its own; this one rises as the blend speeds up (a hand leaving a contact it would
+#: graze goes around in the same bell).
+GROWN_EDGE = 0.3
 
 
 def bump(s: np.ndarray, at: float) -> np.ndarray:
@@ -208,11 +213,11 @@ class Detour:
         found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
         via's offset; ``timed``: the bells over the frames' time, not the blend's
         progress; ``depth``: :meth:`depths` of ``run`` when known. Each bend adds a bell
-        at the deepest frame still in the body; ``grown``: one bell only, at the first
-        deepest frame, its offset grown by each later via's (over the bell's height
-        there, at least :data:`GROWN_FLOOR`): the wrist goes around an obstacle that
-        spans much of the blend (the other arm, moving too) in one curve rather than a
-        zig-zag of bells."""
+        at the deepest frame still in the body; ``grown``: one bell only, topping at the
+        first deepest frame (:data:`GROWN_EDGE` from the ends at least), its offset grown
+        by the via of each frame then deepest (over the bell's height there, at least
+        :data:`GROWN_FLOOR`): the wrist goes around an obstacle that spans much of the
+        blend (the other arm, moving too) in one curve rather than a zig-zag of bells."""
         allowed = [self.schedule.allowed_at(t) for t in times]  # the same at every bend
         depth = self.depths(run, times, allowed) if depth is None else depth
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
@@ -227,13 +232,14 @@ class Detour:
                 best, least = path[:, d].copy(), depth.max()
             if least <= cn.COLLISION_TOL:
                 break
-            m = self.via_frame(depth, s)
+            m = int(np.argmax(depth[1:-1])) + 1 if grown else self.via_frame(depth, s)
             via = self.via(path[m], joints, times[m])
             if via.penetration > cn.PENETRATION_LIMIT:
                 break
             push = reach * (via.qpos[d] - path[m, d])
             if grown:
-                bell = bump(s, s[m]) if bell is None else bell
+                if bell is None:
+                    bell = bump(s, float(np.clip(s[m], GROWN_EDGE, 1.0 - GROWN_EDGE)))
                 offset = offset + push / max(float(bell[m]), GROWN_FLOOR)
                 bent = run[:, d] + bell[:, None] * offset
             else:

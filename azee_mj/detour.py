@@ -44,7 +44,7 @@ EDGE = 0.05
 #: (a via near an end is then reached over all the frames before it, not in the last few
 #: of them), reaching less or further than the first; ``grown``: one bell only, its via's
 #: offset grown until every frame is out of the body (:meth:`Detour.bent_run`).
-ALTERNATIVES = ((1.0, True, False), (1.5, True, False), (1.0, True, True), (1.25, True, True))
+ALTERNATIVES = ((1.0, True, True), (1.0, True, False), (1.5, True, False))
 #: How much shorter an alternative bend's wrist path must be to replace the first when it
 #: leaves as many speed peaks: a clearly shorter way around, not noise.
 SHORTER = 0.95

@@ -44,7 +44,7 @@ EDGE = 0.05
 #: (a via near an end is then reached over all the frames before it, not in the last few
 #: of them), reaching less or further than the first; ``grown``: one bell only, its via's
 #: offset grown until every frame is out of the body (:meth:`Detour.bent_run`).
-ALTERNATIVES = ((1.0, True, True), (1.0, True, False), (1.5, True, False))
+ALTERNATIVES = ((1.0, True, True), (1.0, True, False))
 #: How much shorter an alternative bend's wrist path must be to replace the first when it
 #: leaves as many speed peaks: a clearly shorter way around, not noise.
 SHORTER = 0.95
@@ -79,12 +79,14 @@ def progress(q: np.ndarray) -> np.ndarray:
 
 def better(candidate: tuple[int, float], kept: tuple[int, float]) -> bool:
     """Whether a bend whose wrist moves with ``candidate`` ``(speed peaks, path length)``
-    replaces one with ``kept``: fewer peaks over a path at most as much longer as
-    :data:`SHORTER` asks shorter, or as many peaks over a :data:`SHORTER` one."""
+    replaces one with ``kept``: a :data:`SHORTER` path, or fewer peaks over a path at most
+    as much longer as :data:`SHORTER` asks shorter (of two bends about as long, the one
+    bell; a clearly shorter way, which pacing may still make one bell, before a longer
+    one)."""
     (peaks, length), (kept_peaks, kept_length) = candidate, kept
-    if peaks < kept_peaks:
-        return SHORTER * length <= kept_length
-    return peaks == kept_peaks and length < SHORTER * kept_length
+    if length < SHORTER * kept_length:
+        return True
+    return peaks < kept_peaks and SHORTER * length <= kept_length
 
 
 def runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -135,8 +137,8 @@ class Detour:
     def shortest(self, run: np.ndarray, times: np.ndarray, track: str, first: np.ndarray):
         """The bend of arm ``track``'s blend ``run`` (n, nq) at ``times`` to keep: ``first``
         (its dofs' values), or, when that leaves the wrist with more than one speed peak,
-        the :data:`ALTERNATIVES` bend that is not rushed with the fewest speed peaks, of
-        those the one whose wrist travels least (:func:`better`). Vias on different sides
+        the :data:`ALTERNATIVES` bend that is not rushed and travels least, or about as
+        little with fewer speed peaks (:func:`better`). Vias on different sides
         of an obstacle add up to a zig-zag: a longer way around, with a speed peak per
         leg, that pacing cannot make one bell without speeding it up. The shorter way, or
         one bell grown around the obstacle, paced, is one slower bell."""
@@ -156,8 +158,6 @@ class Detour:
             now = (mv.speed_peaks(speed), float(speed.sum()))
             if better(now, kept):
                 best, kept = new, now
-            if kept[0] <= 1:
-                break
         return best
 
     def wrist_path_speed(self, frames, track: str, times) -> np.ndarray | None:

@@ -28,13 +28,18 @@ from azee_mj import score as sc
 from azee_mj.anatomy import descends
 from azee_mj.blend import EPS, Key
 from azee_mj.ikadapter import IKAdapter
-from azee_mj.kinematics import BodyAxis
+from azee_mj.kinematics import BodyAxis, SitePos
 
 #: How far [rad] the hand may turn from the orientation preferred for it before the pull
 #: back counts as much as a constraint at its tolerance (a row of 1).
 ORIENTATION_TOL = 0.05
 #: The hand's local axes whose world directions fix its orientation.
 HAND_AXES = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+#: Farthest apart [m] the two keys may hold the path's site (about a hand's length) for the
+#: first to take the second's hand orientation: between nearby places the arm hardly
+#: moves and a signer keeps the hand as it is; across a wide sweep the forearm turns and
+#: the hand turns with it.
+NEAR_ENDS = 0.1
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -114,8 +119,9 @@ def orients(cons, model, arm_root: int) -> bool:
 
 def lead_into_paths(adapter: IKAdapter, keys: dict[str, list[Key]]) -> dict[str, list[Key]]:
     """``keys`` (per track) with each arm key that leads into a transpath of its hand's
-    site, and leaves the hand's orientation free, solved again: from the posture of the
-    key the path leads into, preferring that key's hand orientation (in place; returned).
+    site, leaves the hand's orientation free and holds the site within
+    :data:`NEAR_ENDS` of where the key after the path holds it, solved again: from the
+    posture of that key, preferring its hand orientation (in place; returned).
     Every track whose key shares the re-solved posture (its group) takes the new one."""
     sched, solver = adapter.schedule, adapter.solver
     model = solver.model
@@ -132,6 +138,9 @@ def lead_into_paths(adapter: IKAdapter, keys: dict[str, list[Key]]) -> dict[str,
                 continue
             before, after = (keys[track][i] for i in pair)
             if orients(before.cons, model, model.body(arm.upper).id):
+                continue
+            ends = [adapter.at(k.q).value(SitePos(site)) for k in (before, after)]
+            if np.linalg.norm(ends[1] - ends[0]) > NEAR_ENDS:
                 continue
             q = turned(adapter, before, after, arm.hand)
             if q is not None:

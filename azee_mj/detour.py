@@ -138,7 +138,8 @@ class Detour:
         """The bend of arm ``track``'s blend ``run`` (n, nq) at ``times`` to keep: ``first``
         (its dofs' values), or, when that leaves the wrist with more than one speed peak,
         the :data:`ALTERNATIVES` bend that is not rushed and travels least, or about as
-        little with fewer speed peaks (:func:`better`). Vias on different sides
+        little with fewer speed peaks (:func:`better`); a grown bend only if it is one
+        speed bell (pacing may not make one of a grown bend's two). Vias on different sides
         of an obstacle add up to a zig-zag: a longer way around, with a speed peak per
         leg, that pacing cannot make one bell without speeding it up. The shorter way, or
         one bell grown around the obstacle, paced, is one slower bell."""
@@ -156,6 +157,8 @@ class Detour:
             if speed is None:
                 continue
             now = (mv.speed_peaks(speed), float(speed.sum()))
+            if grown and now[0] > 1:
+                continue  # a grown bend is tried for one bell
             if better(now, kept):
                 best, kept = new, now
         return best

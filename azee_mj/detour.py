@@ -10,7 +10,9 @@ via. The blend becomes ``qa + s (qb - qa) + bump(s) (via - blend(s_via))``, with
 blend's own minimum-jerk progress and ``bump`` a smooth bell, 0 with zero slope at both
 ends and 1 at ``s_via``: key, via and key in one movement, at rest at both ends. The via
 is pushed further (:data:`REACH`) until no frame of the bent blend goes in; a blend that
-cannot be bent out of the body is left straight (the frame solver pushes it out).
+cannot be bent out of the body is left straight (the frame solver pushes it out). A bend
+whose vias zig-zag (several speed peaks) may give way to a *grown* one: a single bell
+whose offset grows until the blend clears the body (:meth:`Detour.bent_run`).
 
 Units: radians, seconds.
 """
@@ -51,10 +53,10 @@ SHORTER = 0.95
 #: A grown bend's bell is at least this high where it pushes a frame out: a frame near an
 #: end, where the bell is low, would otherwise ask for a far via.
 GROWN_FLOOR = 0.5
-#: A grown bend's bell tops this far (a fraction of the blend's time) from its ends, at
-#: least: a bell that tops near an end rises (or falls) in a few frames, a speed peak of
-#: its own; this one rises as the blend speeds up (a hand leaving a contact it would
-#: graze goes around in the same bell).
+#: A grown bend's bell tops this far (a fraction of the blend's time or progress) from
+#: its ends, at least: a bell that tops near an end rises (or falls) in a few frames, a
+#: speed peak of its own; this one rises as the blend speeds up (a hand leaving a contact
+#: it would graze goes around in the same bell).
 GROWN_EDGE = 0.3
 
 

@@ -35,6 +35,7 @@ from azee_mj.kinematics import BodyAxis, SitePos
 ORIENTATION_TOL = 0.05
 #: The hand's local axes whose world directions fix its orientation.
 HAND_AXES = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+_LOCAL = np.array(HAND_AXES)
 #: Farthest apart [m] the two keys may hold the path's site (about a hand's length) for the
 #: first to take the second's hand orientation: between nearby places the arm hardly
 #: moves and a signer keeps the hand as it is; across a wide sweep the forearm turns and
@@ -53,13 +54,14 @@ class HandOrientation:
     tol: float = ORIENTATION_TOL
 
     def rows(self, k) -> tuple[np.ndarray, np.ndarray]:
-        """Rows (6,) and their Jacobian (6, nv) on the posture of kinematics ``k``."""
-        r, J = [], []
-        for local, want in zip(HAND_AXES, self.axes):
-            a, ja = k.eval(BodyAxis(self.body, local), True)
-            r.append((a - want) / self.tol)
-            J.append(ja / self.tol)
-        return np.concatenate(r), np.vstack(J)
+        """Rows (6,) and their Jacobian (6, nv) on the posture of kinematics ``k`` (an
+        axis ``a`` turns as ``w x a`` with the body's angular velocity ``w``; asked at
+        every iteration of a path's frame solves, so worked out here in one go)."""
+        bid = k.names.body(self.body)
+        axes = _LOCAL @ k.d.xmat[bid].reshape(3, 3).T  # (2, 3): R @ local, per axis
+        w = k.body_rot_jac(bid).T  # (nv, 3)
+        J = np.vstack([np.cross(w, a).T for a in axes])
+        return (axes - self.axes).ravel() / self.tol, J / self.tol
 
 
 def hand_axes(k, body: str) -> np.ndarray:

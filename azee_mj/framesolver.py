@@ -22,7 +22,7 @@ from azee_mj.blend import BRANCH_SPEED, Key, goal_key, minjerk, next_still
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
 from azee_mj.kinematics import Const, SitePos
-from azee_mj.pathkeys import HandOrientation, body_rotation, hand_turn
+from azee_mj.pathkeys import NEAR_ENDS, HandOrientation, body_rotation, hand_turn
 from azee_mj.routes import path_points
 
 #: Restarts of a per-frame solve (inside its step box) when its start does not converge.
@@ -115,9 +115,11 @@ class Path:
 
 def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray) -> Path:
     """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]: its path points,
-    and the hand carrying its site turning from its orientation at the block's start to
-    that at its end in the same minimum-jerk time, about one axis (a fingertip tracing a
-    path carries its hand along rather than turn it about the tip)."""
+    and, along a circle or between ends within ``NEAR_ENDS`` of each other, the hand
+    carrying its site turning from its orientation at the block's start to that at its end
+    in the same minimum-jerk time, about one axis (a fingertip tracing a circle or a small
+    path carries its hand along rather than turn it about the tip; across a sweep the
+    forearm turns, and the hand with it, as the blend has it)."""
     sched = adapter.schedule
     site = sched.comp.site(b.transpath_site)
     inside = slice(*np.searchsorted(times, [b.start, b.end]).tolist())  # start <= t < end
@@ -127,6 +129,9 @@ def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray)
     if arm is None:
         return path
     fs, fe = (min(int(np.searchsorted(times, x - 1e-9)), len(times) - 1) for x in (b.start, b.end))
+    ends = [adapter.at(q[f]).value(SitePos(site)) for f in (fs, fe)]
+    if not isinstance(b.route, sc.Circle) and np.linalg.norm(ends[1] - ends[0]) > NEAR_ENDS:
+        return path
     R0, R1 = (body_rotation(adapter.at(q[f]), arm.hand) for f in (fs, fe))
     turn = hand_turn(R0, R1, minjerk((times[inside] - b.start) / b.duration))
     return dataclasses.replace(path, hand=arm.hand, turn=turn)

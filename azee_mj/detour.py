@@ -10,7 +10,9 @@ via. The blend becomes ``qa + s (qb - qa) + bump(s) (via - blend(s_via))``, with
 blend's own minimum-jerk progress and ``bump`` a smooth bell, 0 with zero slope at both
 ends and 1 at ``s_via``: key, via and key in one movement, at rest at both ends. The via
 is pushed further (:data:`REACH`) until no frame of the bent blend goes in; a blend that
-cannot be bent out of the body is left straight (the frame solver pushes it out).
+cannot be bent out of the body is left straight (the frame solver pushes it out). A bend
+whose vias zig-zag (several speed peaks) may give way to a *grown* one: a single bell
+whose offset grows until the blend clears the body (:meth:`Detour.bent_run`).
 
 Units: radians, seconds.
 """
@@ -40,13 +42,22 @@ SHALLOW = 5e-3
 #: would be a jerk).
 EDGE = 0.05
 #: Bends tried when the first leaves the wrist with more than one speed peak, as
-#: ``(reach, timed)``: their bells over the blend's time rather than its progress (a via
-#: near an end is then reached over all the frames before it, not in the last few of
-#: them), reaching less or further than the first.
-ALTERNATIVES = ((1.0, True), (1.5, True))
-#: How much shorter an alternative bend's wrist path must be to replace the first: a
-#: clearly shorter way around, not noise.
+#: ``(reach, timed, grown)``: their bells over the blend's time rather than its progress
+#: (a via near an end is then reached over all the frames before it, not in the last few
+#: of them), reaching less or further than the first; ``grown``: one bell only, its via's
+#: offset grown until every frame is out of the body (:meth:`Detour.bent_run`).
+ALTERNATIVES = ((1.0, True, True), (1.0, True, False))
+#: How much shorter an alternative bend's wrist path must be to replace the first when it
+#: leaves as many speed peaks: a clearly shorter way around, not noise.
 SHORTER = 0.95
+#: A grown bend's bell is at least this high where it pushes a frame out: a frame near an
+#: end, where the bell is low, would otherwise ask for a far via.
+GROWN_FLOOR = 0.5
+#: A grown bend's bell tops this far (a fraction of the blend's time or progress) from
+#: its ends, at least: a bell that tops near an end rises (or falls) in a few frames, a
+#: speed peak of its own; this one rises as the blend speeds up (a hand leaving a contact
+#: it would graze goes around in the same bell).
+GROWN_EDGE = 0.3
 
 
 def bump(s: np.ndarray, at: float) -> np.ndarray:
@@ -66,6 +77,18 @@ def progress(q: np.ndarray) -> np.ndarray:
     if den <= 0.0:
         return np.linspace(0.0, 1.0, len(q))
     return np.clip((q - q[0]) @ span / den, 0.0, 1.0)
+
+
+def better(candidate: tuple[int, float], kept: tuple[int, float]) -> bool:
+    """Whether a bend whose wrist moves with ``candidate`` ``(speed peaks, path length)``
+    replaces one with ``kept``: a :data:`SHORTER` path, or fewer peaks over a path at most
+    as much longer as :data:`SHORTER` asks shorter (of two bends about as long, the one
+    bell; a clearly shorter way, which pacing may still make one bell, before a longer
+    one)."""
+    (peaks, length), (kept_peaks, kept_length) = candidate, kept
+    if length < SHORTER * kept_length:
+        return True
+    return peaks < kept_peaks and SHORTER * length <= kept_length
 
 
 def runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -116,23 +139,30 @@ class Detour:
     def shortest(self, run: np.ndarray, times: np.ndarray, track: str, first: np.ndarray):
         """The bend of arm ``track``'s blend ``run`` (n, nq) at ``times`` to keep: ``first``
         (its dofs' values), or, when that leaves the wrist with more than one speed peak,
-        the :data:`ALTERNATIVES` bend whose wrist travels least if it is :data:`SHORTER`
-        and not rushed. Vias on different sides of an obstacle add up to a zig-zag: a
-        longer way around, with a speed peak per leg, that pacing cannot make one bell
-        without speeding it up. The shorter way, paced, is one slower bell."""
+        the :data:`ALTERNATIVES` bend that is not rushed and travels least, or about as
+        little with fewer speed peaks (:func:`better`); a grown bend only if it is one
+        speed bell (pacing may not make one of a grown bend's two). Vias on different sides
+        of an obstacle add up to a zig-zag: a longer way around, with a speed peak per
+        leg, that pacing cannot make one bell without speeding it up. The shorter way, or
+        one bell grown around the obstacle, paced, is one slower bell."""
         d = self.schedule.track_dofs[track]
         joints = sorted(self.schedule.track_joints[track])
         speed = self.wrist_speed(run, first, d, track, times)
         if speed is None or mv.speed_peaks(speed) <= 1:
             return first
-        best, length = first, SHORTER * speed.sum()
-        for reach, timed in ALTERNATIVES:
-            new = self.bent_run(run, times, d, joints, reach, timed)
+        best, kept = first, (mv.speed_peaks(speed), float(speed.sum()))
+        for reach, timed, grown in ALTERNATIVES:
+            new = self.bent_run(run, times, d, joints, reach, timed, grown=grown)
             if new is None or self.rushed(run, new, d, track, times):
                 continue
             speed = self.wrist_speed(run, new, d, track, times)
-            if speed is not None and speed.sum() < length:
-                best, length = new, speed.sum()
+            if speed is None:
+                continue
+            now = (mv.speed_peaks(speed), float(speed.sum()))
+            if grown and now[0] > 1:
+                continue  # a grown bend is tried for one bell
+            if better(now, kept):
+                best, kept = new, now
         return best
 
     def wrist_path_speed(self, frames, track: str, times) -> np.ndarray | None:
@@ -173,19 +203,33 @@ class Detour:
         )
 
     def bent_run(
-        self, run, times, d, joints, reach: float = REACH, timed: bool = False, depth=None
+        self,
+        run,
+        times,
+        d,
+        joints,
+        reach: float = REACH,
+        timed: bool = False,
+        depth=None,
+        grown: bool = False,
     ) -> np.ndarray | None:
         """The dofs ``d`` of the arm (``joints``) over the blend ``run`` (n, nq) at
         ``times`` bent around the body, or None: the blend stays out of it, or no bend
         found within :data:`BENDS` keeps every frame out. ``reach``: the bend over the
         via's offset; ``timed``: the bells over the frames' time, not the blend's
-        progress; ``depth``: :meth:`depths` of ``run`` when known."""
+        progress; ``depth``: :meth:`depths` of ``run`` when known. Each bend adds a bell
+        at the deepest frame still in the body; ``grown``: one bell only, topping at the
+        first deepest frame (:data:`GROWN_EDGE` from the ends at least), its offset grown
+        by the via of each frame then deepest (over the bell's height there, at least
+        :data:`GROWN_FLOOR`): the wrist goes around an obstacle that spans much of the
+        blend (the other arm, moving too) in one curve rather than a zig-zag of bells."""
         allowed = [self.schedule.allowed_at(t) for t in times]  # the same at every bend
         depth = self.depths(run, times, allowed) if depth is None else depth
         if not (depth[1:-1] > cn.COLLISION_TOL).any():
             return None
         s = np.linspace(0.0, 1.0, len(run)) if timed else progress(run[:, d])
         path, best, least = run.copy(), None, np.inf
+        bell, offset = None, np.zeros(len(d))
         for k in range(BENDS):
             if k:
                 depth = self.depths(path, times, allowed)
@@ -193,11 +237,18 @@ class Detour:
                 best, least = path[:, d].copy(), depth.max()
             if least <= cn.COLLISION_TOL:
                 break
-            m = self.via_frame(depth, s)
+            m = int(np.argmax(depth[1:-1])) + 1 if grown else self.via_frame(depth, s)
             via = self.via(path[m], joints, times[m])
             if via.penetration > cn.PENETRATION_LIMIT:
                 break
-            bent = path[:, d] + bump(s, s[m])[:, None] * (reach * (via.qpos[d] - path[m, d]))
+            push = reach * (via.qpos[d] - path[m, d])
+            if grown:
+                if bell is None:
+                    bell = bump(s, float(np.clip(s[m], GROWN_EDGE, 1.0 - GROWN_EDGE)))
+                offset = offset + push / max(float(bell[m]), GROWN_FLOOR)
+                bent = run[:, d] + bell[:, None] * offset
+            else:
+                bent = path[:, d] + bump(s, s[m])[:, None] * push
             if np.array_equal(bent, path[:, d]):
                 break  # the via is the frame itself: every further bend would be this one
             path[:, d] = bent

@@ -22,6 +22,7 @@ from azee_mj.blend import BRANCH_SPEED, Key, goal_key, minjerk, next_still
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
 from azee_mj.kinematics import Const, SitePos
+from azee_mj.pathkeys import NEAR_ENDS, HandOrientation, body_rotation, hand_turn
 from azee_mj.routes import path_points
 
 #: Restarts of a per-frame solve (inside its step box) when its start does not converge.
@@ -31,6 +32,9 @@ FRAME_RESTARTS = 1
 CURVE_TOL = 0.05
 #: Tolerance of a transpath's path point [m].
 PATH_TOL = 1e-3
+#: How far [rad] the hand tracing a transpath may turn from its turn between the path's
+#: ends before the pull back counts as much as a constraint at its tolerance.
+TURN_TOL = 0.005
 #: A frame's step box over the largest joint change of the blend into it: the box never
 #: holds a joint slower than its blend moves.
 STEP_MARGIN = 1.5
@@ -93,20 +97,44 @@ class Path:
     limbs: frozenset[str]
     points: np.ndarray
     first: int = 0
+    hand: str | None = None  # the body of the hand carrying the site, if one does
+    turn: np.ndarray | None = None  # (F, 2, 3) its axes at the same frames (hand_turn)
 
     def place(self, f: int) -> cn.Place:
         """The placement of the site on its path point at frame ``f`` (inside the block)."""
         at = Const(tuple(self.points[f - self.first]))
         return cn.Place(self.site, at, PATH_TOL, f"{self.block.path}@path")
 
+    def turned(self, f: int) -> tuple[HandOrientation, ...]:
+        """The orientation of the hand carrying the site at frame ``f`` (inside the block)
+        as a preference (none if no hand carries it)."""
+        if self.hand is None:
+            return ()
+        return (HandOrientation(self.hand, self.turn[f - self.first], TURN_TOL),)
+
 
 def transpath(adapter: IKAdapter, b: sc.Block, q: np.ndarray, times: np.ndarray) -> Path:
-    """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]."""
-    comp = adapter.schedule.comp
-    site = comp.site(b.transpath_site)
+    """Transpath block ``b`` on the frames ``q`` (T, nq) at ``times`` [s]: its path points,
+    and, along a circle or between ends within ``NEAR_ENDS`` of each other, the hand
+    carrying its site turning from its orientation at the block's start to that at its end
+    in the same minimum-jerk time, about one axis (a fingertip tracing a circle or a small
+    path carries its hand along rather than turn it about the tip; across a sweep the
+    forearm turns, and the hand with it, as the blend has it)."""
+    sched = adapter.schedule
+    site = sched.comp.site(b.transpath_site)
     inside = slice(*np.searchsorted(times, [b.start, b.end]).tolist())  # start <= t < end
     points = transpath_points(adapter, b, q, times, inside)
-    return Path(b, site, frozenset(comp.site_tracks(site)), points, inside.start)
+    path = Path(b, site, frozenset(sched.comp.site_tracks(site)), points, inside.start)
+    arm = sched.anatomy.hand_of(site)
+    if arm is None:
+        return path
+    fs, fe = (min(int(np.searchsorted(times, x - 1e-9)), len(times) - 1) for x in (b.start, b.end))
+    ends = [adapter.at(q[f]).value(SitePos(site)) for f in (fs, fe)]
+    if not isinstance(b.route, sc.Circle) and np.linalg.norm(ends[1] - ends[0]) > NEAR_ENDS:
+        return path
+    R0, R1 = (body_rotation(adapter.at(q[f]), arm.hand) for f in (fs, fe))
+    turn = hand_turn(R0, R1, minjerk((times[inside] - b.start) / b.duration))
+    return dataclasses.replace(path, hand=arm.hand, turn=turn)
 
 
 class BlendCurve:
@@ -196,9 +224,11 @@ class FrameSolver:
             curve.advance(f)
             tracks = {names[i] for i in np.flatnonzero(moving[f])}
             cons, free = self.held(tracks, t, keys_at)
+            turned = []
             for p in (paths[j] for j in paths_at.at(t)):
                 if p.limbs & tracks:
                     cons.append(p.place(f))
+                    turned += p.turned(f)
                     free |= {j for tr in p.limbs for j in joints[tr]}
             if not cons:
                 self.follow(q, f, t, tracks)
@@ -206,7 +236,7 @@ class FrameSolver:
             self.held_frames[f] = True
             free |= {j for tr in tracks for j in joints[tr]}
             bounds = self.reach(q, curve, still[f], f, names, tracks)
-            q[f] = self.constrained(q, curve, f, t, cons, free, bounds)
+            q[f] = self.constrained(q, curve, f, t, cons, free, bounds, tuple(turned))
         return q
 
     def held(self, tracks, t: float, keys_at: KeyIndex) -> tuple[list, set[str]]:
@@ -256,13 +286,14 @@ class FrameSolver:
             # still through (it started deep in): from the frame before, clear
             q[f] = ad.solve(soft, sorted(free), q[f - 1], t, max_change=0.5 * step, restarts=0).qpos
 
-    def constrained(self, q, curve, f: int, t: float, cons, free, bounds) -> np.ndarray:
+    def constrained(self, q, curve, f: int, t: float, cons, free, bounds, turned=()):
         """The posture of frame ``f`` meeting ``cons``. The joints the constraints move
         start from the frame before (final by now), advanced by the blend's step (the same
         branch), and among the postures that meet the constraints take the one nearest the
         blend: a solve that starts where its constraints are met stops at once, and would
         leave them still until the next key. The others follow the blend, at most a step a
-        frame from the frame before."""
+        frame from the frame before. ``turned``: the orientations of the hands tracing
+        paths (:meth:`Path.turned`), preferred as the blend is."""
         ad, step = self.adapter, self.step
         key = tuple(cons)
         if key not in self._needs:
@@ -282,7 +313,7 @@ class FrameSolver:
                 q0[d] = np.clip(q0[d], before[d] - step, before[d] + step)
         if bounds is not None:
             q0 = np.clip(q0, *bounds)
-        near = (self.curve_preference(q[f], moved),)
+        near = (self.curve_preference(q[f], moved), *turned)
         res = ad.solve(
             cons,
             moved,

@@ -31,6 +31,7 @@ from azee_mj.blend import EPS, SAME_POSTURE, Key
 from azee_mj.diagnose import diagnose
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
+from azee_mj.pathkeys import lead_into_paths
 from azee_mj.preferences import Preferences, widened
 from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
@@ -348,7 +349,7 @@ class KeyPoser:
                 self.relax(keys, state, busy, {it.driven.con for it in items}, t0, t1)
             if items:
                 self.pose_segment(items, keys, state, t0, t1)
-        return keys
+        return lead_into_paths(self.adapter, keys) if self.mode is Mode.MULTITRACK else keys
 
     def hold(self, keys, state: np.ndarray, t0: float, t1: float) -> set[str]:
         """Rule 4: over a segment ``[t0, t1)`` inside a hold, the tracks of the held block

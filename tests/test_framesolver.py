@@ -3,16 +3,21 @@ reach bounds, and frames that hold a placement while the other joints blend."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
+from azee_mj import timeline
 from azee_mj.blend import MAX_JOINT_SPEED
-from azee_mj.framesolver import CURVE_TOL, FrameSolver
+from azee_mj.framesolver import CURVE_TOL, TURN_TOL, FrameSolver, transpath
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import KeyPoser
 from azee_mj.schedule import Mode, Schedule
 from azee_mj.score import load_score
 
 FPS = 50.0
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _adapter(solver, constraints=()) -> IKAdapter:
@@ -89,3 +94,24 @@ def test_constrained_frames_hold_the_placement_while_the_hand_blends(solver):
     for f in range(T):
         assert np.linalg.norm(solver.at(out[f]).d.site_xpos[sid] - target) <= 1e-3
     assert np.abs(np.diff(out, axis=0)).max() <= MAX_JOINT_SPEED / FPS + 1e-9
+
+
+def _path_of(solver, score_dict, name: str):
+    """The transpath ``name`` of a score on its realized frames."""
+    score = load_score(score_dict)
+    r = timeline.realize(score, solver=solver)
+    adapter = IKAdapter(Schedule(score, solver))
+    block = next(b for b in score.blocks() if b.transpath_site and b.path.endswith(name))
+    return transpath(adapter, block, r.qpos, r.time - r.score_start)
+
+
+def test_a_hand_turns_along_a_circle_and_is_left_to_its_blend_across_a_sweep(solver):
+    penser = json.loads((ROOT / "examples" / "penser.json").read_text())
+    circle = _path_of(solver, {**penser, "strong_side": "R"}, "CIRCLE")
+    assert circle.hand == "palm_R"
+    assert circle.turn.shape == (len(circle.points), 2, 3)
+    np.testing.assert_allclose(np.linalg.norm(circle.turn, axis=2), 1.0, atol=1e-12)
+    assert circle.turned(circle.first)[0].tol == TURN_TOL
+    sweep = json.loads((ROOT / "bench" / "data" / "motion" / "sweep.json").read_text())
+    wide = _path_of(solver, sweep, "SWEEP")  # its ends 0.43 m apart, an arc
+    assert wide.hand is None and wide.turned(wide.first) == ()

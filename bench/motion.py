@@ -38,6 +38,7 @@ import json
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
@@ -125,6 +126,19 @@ def leaving_frames(rollout) -> int:
     return int(bad.sum())
 
 
+def out_of_range_frames(rollout) -> int:
+    """Frames at which a limited joint of the bundled signer is outside its range (by more
+    than ``check.check_poses``' default 1e-6 rad or m)."""
+    model = load_model()
+    lo = np.where(model.jnt_limited, model.jnt_range[:, 0], -np.inf)
+    hi = np.where(model.jnt_limited, model.jnt_range[:, 1], np.inf)
+    scalar = np.isin(model.jnt_type, (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE))
+    adr = model.jnt_qposadr[scalar]
+    q = np.asarray(rollout.qpos)[:, adr]
+    excess = np.maximum(lo[scalar] - q, q - hi[scalar])
+    return int((excess > 1e-6).any(axis=1).sum())
+
+
 def side_columns(side: str) -> list[int]:
     """The qpos addresses of the bundled signer's arm and hand joints of ``side`` (R, L)."""
     model = load_model()
@@ -170,6 +184,7 @@ def measure(name: str, score_dict: dict) -> tuple[dict, dict]:
         "frames": len(r.time),
         "score_start": float(getattr(r, "score_start", 0.0)),
         "leaving_frames": leaving_frames(r),
+        "out_of_range_frames": out_of_range_frames(r),
         "max_joint_speed": joint,
         "max_joint_speed_chosen": chosen,
         "findings": [f.describe() for f in getattr(r, "findings", ())],
@@ -193,6 +208,7 @@ def summary(recs: list[dict]) -> dict:
         "chosen_over_3ms": sum(m["peak_speed"] > WRIST_MAX for m in chosen),
         "chosen_sparc_out": sum(not SPARC_RANGE[0] <= m["sparc"] <= SPARC_RANGE[1] for m in chosen),
         "leaving_frames": sum(r["leaving_frames"] for r in recs),
+        "out_of_range_frames": sum(r["out_of_range_frames"] for r in recs),
         "max_joint_speed": max(r["max_joint_speed"] for r in recs),
         "max_joint_speed_chosen": max(r.get("max_joint_speed_chosen", 0.0) for r in recs),
         "chosen_peak_wrist": max((m["peak_speed"] for m in chosen), default=0.0),
@@ -204,9 +220,9 @@ def table(recs: list[dict]) -> str:
     rows = [
         (
             "| rollout | movements | peak wrist [m/s] | median SPARC | multi-peak | leaving frames "
-            "| fastest joint [rad/s] |"
+            "| out of range | fastest joint [rad/s] |"
         ),
-        "| --- | --- | --- | --- | --- | --- | --- |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in recs:
         sp = [m["sparc"] for m in r["movements"]]
@@ -214,7 +230,7 @@ def table(recs: list[dict]) -> str:
             f"| {r['name']} | {len(r['movements'])} | {r['peak_wrist_speed']:.2f} | "
             f"{np.median(sp) if sp else float('nan'):.2f} | "
             f"{sum(m['peaks'] > 1 for m in r['movements'])} | {r['leaving_frames']} | "
-            f"{r['max_joint_speed']:.1f} |"
+            f"{r['out_of_range_frames']} | {r['max_joint_speed']:.1f} |"
         )
     return "\n".join(rows)
 

@@ -426,6 +426,29 @@ static PyObject* mod_depth(PyObject* self, PyObject* args) {
   return PyFloat_FromDouble(depth);
 }
 
+/* pairs_depth(model_addr, data_addr, pairs int32 (n, 2), allowed int32 (k, 2)) -> depth [m]:
+   MuJoCo's narrowphase on the geom pairs alone (no mj_collision) on the posture in data (its
+   kinematics run), the deepest penetration (>= 0) but between the body pairs allowed. */
+static PyObject* mod_pairs_depth(PyObject* self, PyObject* args) {
+  (void)self;
+  unsigned long long ma, da;
+  PyObject *op, *oa;
+  if (!PyArg_ParseTuple(args, "KKOO", &ma, &da, &op, &oa)) return NULL;
+  const mjModel* m = (const mjModel*)(uintptr_t)ma;
+  mjData* d = (mjData*)(uintptr_t)da;
+  Py_buffer P = {0}, B = {0};
+  if (get_buf(op, &P, 4, -1, "pairs", 0)) return NULL;
+  if (get_buf(oa, &B, 4, -1, "allowed", 0)) return release(&P), NULL;
+  const int32_t* g = P.buf;
+  int n = (int)(P.len / 8), bad = P.len % 8 != 0;
+  for (int i = 0; i < 2 * n && !bad; i++) bad = g[i] < 0 || g[i] >= m->ngeom;
+  double depth = bad ? 0.0 : pairs_depth(m, d, g, n, B.buf, (int)(B.len / 8));
+  release(&P);
+  release(&B);
+  if (bad) return PyErr_SetString(PyExc_ValueError, "pairs: geom ids out of range"), NULL;
+  return PyFloat_FromDouble(depth);
+}
+
 /* {name: (sizeof, {field: offsetof})} of the records shared with Python. */
 #define FIELD(T, f) PyTuple_Pack(2, PyUnicode_FromString(#f), PyLong_FromSsize_t(offsetof(T, f)))
 static PyObject* record(Py_ssize_t size, PyObject* const* fields, int n) {
@@ -494,6 +517,9 @@ static PyMethodDef mod_methods[] = {
      "effort(model_addr, data_addr, edof, anc, cols) -> (tau, J): gravity torques."},
     {"depth", mod_depth, METH_VARARGS,
      "depth(model_addr, data_addr, allowed) -> the deepest penetration [m] after mj_collision."},
+    {"pairs_depth", mod_pairs_depth, METH_VARARGS,
+     "pairs_depth(model_addr, data_addr, pairs, allowed) -> the deepest penetration [m] among "
+     "geom pairs."},
     {"layout", mod_layout, METH_NOARGS,
      "layout() -> {record: (sizeof, {field: offsetof})} of Block, Term and Tunables."},
     {NULL, NULL, 0, NULL}};

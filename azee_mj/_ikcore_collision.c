@@ -114,3 +114,40 @@ double contact_depth(const mjModel* m, const mjData* d, const int32_t* allowed, 
   }
   return depth;
 }
+
+/* The contacts of geom pair (g1, g2) (in the type order of its function) on the posture in
+   data as mj_collision finds them: after its bounding-sphere test, with its margin (the
+   pair's larger, or the override's), which the narrowphase's result depends on. */
+static int margin_contacts(const mjModel* m, mjData* d, int g1, int g2, mjPreContact* pc) {
+  double margin = fmax(m->geom_margin[g1], m->geom_margin[g2]);
+  if (m->opt.enableflags & mjENBL_OVERRIDE) margin = 0.5 * m->opt.o_margin;
+  const double *x1 = d->geom_xpos + 3 * g1, *x2 = d->geom_xpos + 3 * g2;
+  double dx = x1[0] - x2[0], dy = x1[1] - x2[1], dz = x1[2] - x2[2];
+  double bound = m->geom_rbound[g1] + m->geom_rbound[g2] + margin;
+  if (m->geom_rbound[g1] > 0 && m->geom_rbound[g2] > 0 &&
+      dx * dx + dy * dy + dz * dz > bound * bound)
+    return 0;
+  return mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]](m, d, pc, g1, g2, margin);
+}
+
+/* The deepest penetration (>= 0) on the posture in data among geom pairs (n, 2) (each in the
+   type order of its function, as collision_pairs lists them), but between the bodies of one of
+   the na pairs allowed (b1, b2) (both orders listed): contact_depth on those pairs alone,
+   without mj_collision (a caller that knows the other pairs' depth). */
+double pairs_depth(const mjModel* m, mjData* d, const int32_t* pairs, int n,
+                   const int32_t* allowed, int na) {
+  mjPreContact pc[mjMAXCONPAIR];
+  double depth = 0.0;
+  for (int p = 0; p < n; p++) {
+    int g1 = pairs[2 * p], g2 = pairs[2 * p + 1];
+    int k = margin_contacts(m, d, g1, g2, pc), deeper = 0;
+    for (int c = 0; c < k; c++) deeper |= -pc[c].dist > depth;
+    if (!deeper) continue;
+    int b1 = m->geom_bodyid[g1], b2 = m->geom_bodyid[g2], skip = 0;
+    for (int i = 0; i < na && !skip; i++) skip = allowed[2 * i] == b1 && allowed[2 * i + 1] == b2;
+    if (skip) continue;
+    for (int c = 0; c < k; c++)
+      if (-pc[c].dist > depth) depth = -pc[c].dist;
+  }
+  return depth;
+}

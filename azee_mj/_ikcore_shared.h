@@ -175,6 +175,8 @@ int penetrations(const mjModel* m, mjData* d, int g1, int g2, mjPreContact* pc);
 int collision_rows(Core* s, int b, int* rows, double* depth);
 double deepest(const Core* s, const int32_t* pairs, int n);
 double contact_depth(const mjModel* m, const mjData* d, const int32_t* allowed, int n);
+double pairs_depth(const mjModel* m, mjData* d, const int32_t* pairs, int n,
+                   const int32_t* allowed, int na);
 
 /* _ikcore_natural.c */
 void effort(const mjModel* m, const mjData* d, int ne, const int* edof, const unsigned char* anc,

@@ -233,6 +233,16 @@ def contact_depth(m: mujoco.MjModel, d: mujoco.MjData, allowed=frozenset()) -> f
     return native.core().depth(m._address, d._address, _pair_array(allowed))
 
 
+def pairs_depth(
+    m: mujoco.MjModel, d: mujoco.MjData, pairs: np.ndarray, allowed=frozenset()
+) -> float:
+    """:func:`contact_depth` among geom ``pairs`` (n, 2) int32 alone (as
+    :func:`~azee_mj.posture.collision.collision_pairs` lists them), on a posture whose
+    kinematics ``d`` holds already: MuJoCo's narrowphase on those pairs, without
+    ``mj_collision`` (for a caller that knows the other pairs' depth), in the compiled core."""
+    return native.core().pairs_depth(m._address, d._address, pairs, _pair_array(allowed))
+
+
 @functools.lru_cache(maxsize=256)
 def _pair_array(allowed: frozenset) -> np.ndarray:
     """Body pairs ``allowed`` as an (n, 2) int32 array (the schedule shares its sets: each

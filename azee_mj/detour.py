@@ -26,6 +26,7 @@ from azee_mj import ik
 from azee_mj import movement as mv
 from azee_mj.blend import minjerk
 from azee_mj.ikadapter import IKAdapter, Solved
+from azee_mj.posture.collision import pair_coordinates, still_pairs
 
 #: How far a bend goes, over the via's offset from the blend: the via itself only just
 #: clears the body, the frames around it may not.
@@ -107,6 +108,9 @@ class Detour:
         self.bent: list[tuple[str, int, int]] = []
         self._speeds: dict[tuple, np.ndarray] = {}  # see wrist_path_speed
         self._vias: dict[tuple, ik.IKResult] = {}  # see via
+        solver = adapter.solver
+        self._pairs = solver.all_pairs  # with the coordinates moving each, see depths
+        self._pair_q = pair_coordinates(solver.model, self._pairs)
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
@@ -290,15 +294,24 @@ class Detour:
         s = np.linspace(0.0, 1.0, len(run))
         out = np.empty(len(run))
         keys: dict[frozenset, tuple[float, float]] = {}  # the keys' depths, per allowed set
+        # The pairs the run moves are measured at every frame, the others once.
+        still = still_pairs(self._pair_q, run)
+        moved = np.ascontiguousarray(self._pairs[~still])
+        kept = np.ascontiguousarray(self._pairs[still])
+        rest: dict[frozenset, float] = {}  # the still pairs' depth, per allowed set
         for i, (x, allowed) in enumerate(zip(run, allowed_at)):
             if allowed not in keys:
                 keys[allowed] = (self.depth(run[0], allowed), self.depth(run[-1], allowed))
+                k = self.adapter.at(run[0])
+                rest[allowed] = cn.pairs_depth(k.m, k.d, kept, allowed)
             first, last = keys[allowed]
-            out[i] = max(self.depth(x, allowed) - ((1.0 - s[i]) * first + s[i] * last), 0.0)
+            x_depth = self.depth(x, allowed, (moved, rest[allowed]))
+            out[i] = max(x_depth - ((1.0 - s[i]) * first + s[i] * last), 0.0)
         return out
 
-    def depth(self, q: np.ndarray, allowed) -> float:
+    def depth(self, q: np.ndarray, allowed, split=None) -> float:
         """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``
         (worked out once per posture by the adapter: a blend's keys are its end frames, and a
-        bend leaves the frames near its ends as they were)."""
-        return self.adapter.depth(q, allowed, posed=False)
+        bend leaves the frames near its ends as they were); ``split``: see
+        :meth:`~azee_mj.ikadapter.IKAdapter.depth`."""
+        return self.adapter.depth(q, allowed, posed=False, split=split)

@@ -110,14 +110,16 @@ class IKAdapter:
         bring together."""
         return self.depth(q, self.schedule.allowed_at(t)) > cn.COLLISION_TOL
 
-    def depth(self, q: np.ndarray, allowed=frozenset(), posed: bool = True) -> float:
+    def depth(self, q: np.ndarray, allowed=frozenset(), posed: bool = True, split=None) -> float:
         """Deepest penetration [m] (>= 0) of posture ``q`` (nq,) but for the body pairs
         ``allowed`` (:func:`~azee_mj.constraints.penetration_depth`, its kinematics run
         once); the solver's data holds that posture's kinematics afterwards (unless not
         ``posed``, when a depth already known costs no kinematics: a caller that reads only
         the depth). Each depth is kept (:data:`DEPTHS_KEPT` at most): a detour measures the
         same frames as it bends a blend, and the frame solver and the pacing measure many
-        of them again."""
+        of them again. ``split``: ``(pairs, rest)``, the geom pairs whose depth ``q`` may
+        change and the deepest penetration [m] of all the others (outside ``allowed``),
+        known: only those pairs are measured, to the same depth."""
         key = (q.tobytes(), allowed)
         out = self._depths.get(key)
         if out is not None:
@@ -127,7 +129,11 @@ class IKAdapter:
         k = self.solver.at(q)
         if len(self._depths) >= DEPTHS_KEPT:
             self._depths.clear()
-        out = self._depths[key] = cn.contact_depth(k.m, k.d, allowed)
+        if split is None:
+            out = cn.contact_depth(k.m, k.d, allowed)
+        else:
+            out = max(cn.pairs_depth(k.m, k.d, split[0], allowed), split[1])
+        self._depths[key] = out
         return out
 
     def dofs(self, joints) -> np.ndarray:

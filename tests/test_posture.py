@@ -10,7 +10,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik, native
 from azee_mj import kinematics as kin
 from azee_mj.posture import contract, starts
-from azee_mj.posture.collision import moving_pairs
+from azee_mj.posture.collision import moving_pairs, pair_coordinates, still_pairs
 from azee_mj.posture.contract import BLOCK
 from azee_mj.posture.plan import (
     BlockCompiler,
@@ -219,3 +219,29 @@ def test_a_joint_targets_record_is_the_compilers(solver):
     assert [(b.start, b.stop, b.scaled) for b in plan.items] == [(0, 1, False), (1, 2, False)]
     residuals, _ = plan.report(solver.natural)
     assert [(r.kind, r.unit) for r in residuals] == [("jointtarget", "rad"), ("jointtarget", "m")]
+
+
+def test_still_pairs_keep_their_geoms_to_the_bit_and_the_others_move(solver):
+    """Over postures that move the right arm only, the pairs called still have both geoms
+    at the same place to the bit; every other pair has a geom on the right arm's chain
+    (checked against the kinematics)."""
+    m = solver.model
+    d = solver.data
+    pairs = solver.all_pairs
+    coords = pair_coordinates(m, pairs)
+    free = solver.free_dofs(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
+    rng = np.random.default_rng(3)
+    postures = np.repeat(solver.natural[None], 4, axis=0)
+    qadr = [m.jnt_qposadr[m.dof_jntid[f]] for f in free]  # hinge joints: one coordinate
+    postures[1:, qadr] = rng.uniform(solver.lower[qadr], solver.upper[qadr], (3, len(qadr)))
+    still = still_pairs(coords, postures)
+    assert 0 < still.sum() < len(pairs)
+    xpos = []
+    for q in postures:
+        solver.at(q)
+        xpos.append(d.geom_xpos.copy())
+    xpos = np.array(xpos)
+    same = (xpos == xpos[:1]).all(axis=(0, 2))  # (ngeom,) unmoved to the bit
+    assert same[pairs[still]].all()
+    assert not same[pairs[~still]].all(axis=1).any()
+    assert still_pairs(coords, postures[:1]).all()  # one posture: nothing moves

@@ -83,3 +83,24 @@ def moving_pairs(m: mujoco.MjModel, pairs: np.ndarray, free: np.ndarray) -> np.n
     bodies = m.geom_bodyid[pairs]
     keep = group[bodies[:, 0]] != group[bodies[:, 1]]
     return np.ascontiguousarray(pairs[keep])
+
+
+def pair_coordinates(m: mujoco.MjModel, pairs: np.ndarray) -> np.ndarray:
+    """(n, nq) bool: the posture coordinates that move geom pair ``pairs[i]``'s geoms (the
+    joints from the world to either body). A pair none of whose coordinates changes keeps
+    its distance, to the bit."""
+    chain = np.zeros((m.nbody, m.nq), bool)  # the coordinates that move each body
+    for b in range(1, m.nbody):  # parents come before children
+        chain[b] = chain[m.body_parentid[b]]
+        for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
+            a = m.jnt_qposadr[j]
+            chain[b, a : m.jnt_qposadr[j + 1] if j + 1 < m.njnt else m.nq] = True
+    bodies = m.geom_bodyid[pairs]
+    return chain[bodies[:, 0]] | chain[bodies[:, 1]]
+
+
+def still_pairs(coordinates: np.ndarray, postures: np.ndarray) -> np.ndarray:
+    """(n,) bool: which pairs of :func:`pair_coordinates` ``coordinates`` (n, nq) keep their
+    geoms where they are over every posture of ``postures`` (k, nq)."""
+    changed = (postures != postures[:1]).any(axis=0)
+    return ~coordinates[:, changed].any(axis=1)

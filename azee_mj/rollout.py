@@ -241,9 +241,9 @@ class ResidualTable:
         """Frame -> the (constraint, tracks it drives) outside their tolerance at that frame,
         in block order, then constraint order; frames ascending."""
         out: dict[int, list] = {}
-        for (_, c, ic, span), vals in zip(self.items, self.values):
+        for (b, c, ic, span), vals in zip(self.items, self.values):
             for f in (span.start + np.flatnonzero(~(vals <= ic.tol))).tolist():
-                out.setdefault(f, []).append((ic, self.schedule.comp.tracks_of(c)))
+                out.setdefault(f, []).append((ic, self.schedule.block_tracks(b, c)))
         return dict(sorted(out.items()))
 
     def update(self, q: np.ndarray, frames) -> None:

@@ -138,6 +138,7 @@ class Compiler:
         self._morph_targets: dict[tuple[str, str], cn.JointTarget] = {}
         self._ranges: dict[str, tuple[np.float64, np.float64, np.float64]] = {}
         self._body_tracks: dict[tuple[int, bool], frozenset[str]] = {}
+        self._palm_tracks: dict[int, str] | None = None
 
     # expressions
     def site(self, ref: sc.SiteRef) -> str:
@@ -276,6 +277,30 @@ class Compiler:
             return None
         return next(iter(hands[0]))
 
+    def palm_hands(self, c) -> set[str]:
+        """The hand tracks of the palms a contact ``c`` touches with (its placed site or
+        the site it meets on a hand's palm, not a finger: the palm, its back or edge): a
+        hand given no shape opens its fingers as far as the palms need to meet (curled
+        resting fingers are in the way); the comfort rows keep them relaxed otherwise."""
+        sites = self.contact_sites(c)
+        if not sites:
+            return set()
+        if self._palm_tracks is None:
+            self._palm_tracks = self._hand_tracks_by_palm()
+        bodies = (self.anatomy.site_body(s) for s in (self.site(c.site), *sites))
+        return {self._palm_tracks[b] for b in bodies if b in self._palm_tracks}
+
+    def _hand_tracks_by_palm(self) -> dict[int, str]:
+        """Palm body -> the hand track owning the joints of its fingers."""
+        out = {}
+        for j, track in self.joint_track.items():
+            if track.startswith("hand"):
+                body = int(self.m.jnt_bodyid[j])
+                for palm in self.anatomy.hands:
+                    if descends(self.m, body, palm):
+                        out[palm] = track
+        return out
+
     def tracks_of(self, c) -> set[str]:
         """Tracks a score constraint drives (see :func:`constraint_tracks`)."""
         if isinstance(c, sc.Place):
@@ -370,6 +395,7 @@ class Schedule:
         self._contact_index: IntervalIndex | None = None
         self._unions: dict[tuple[int, ...], frozenset[tuple[int, int]]] = {}
         self._moved_cache: dict = {}
+        self._shaped: dict[str, frozenset[str]] = {}
         self._track_sets: dict[frozenset[str], frozenset[str]] = {}
         self.body_names = [
             mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(self.m.nbody)
@@ -416,7 +442,7 @@ class Schedule:
         out = []
         for c in b.constraints:
             label = f"{b.path}#{c.index}"
-            tracks = self.comp.tracks_of(c)
+            tracks = self.block_tracks(b, c)
             if isinstance(c, sc.MorphC):
                 out.append(DrivenConstraint(None, self.comp.morph_changes(c), tracks, c))
             elif isinstance(c, sc.Trill):
@@ -425,12 +451,39 @@ class Schedule:
                 out.append(DrivenConstraint(self.comp.constraint(c, label), {}, tracks, c))
         return out
 
+    def block_tracks(self, b: sc.Block, c) -> set[str]:
+        """Tracks constraint ``c`` of cstr block ``b`` drives: the compiler's
+        (:meth:`Compiler.tracks_of`), with the fingers of a palm it touches with
+        (:meth:`Compiler.palm_hands`) when no morph of a block over ``b``'s time shapes
+        that hand."""
+        out = self.comp.tracks_of(c)
+        free = self.comp.palm_hands(c)
+        if free:
+            out |= free - self.shaped_hands(b)
+        return out
+
+    def shaped_hands(self, b: sc.Block) -> frozenset[str]:
+        """The tracks morphs of the cstr blocks overlapping block ``b`` drive (worked out
+        once per block)."""
+        out = self._shaped.get(b.path)
+        if out is None:
+            out = self._shaped[b.path] = frozenset().union(
+                *(
+                    self.comp.tracks_of(m)
+                    for o in self.blocks
+                    if o.kind is sc.BlockKind.CSTR and o.start < b.end and b.start < o.end
+                    for m in o.constraints
+                    if isinstance(m, sc.MorphC)
+                )
+            )
+        return out
+
     def intervals(self) -> dict[str, tuple[TrackInterval, ...]]:
         """Per track, the intervals blocks drive it, in time order."""
         sched: dict[str, list[TrackInterval]] = {t: [] for t in self.track_joints}
         for b in self.blocks:
             if b.kind is sc.BlockKind.CSTR:
-                tracks = set().union(*(self.comp.tracks_of(c) for c in b.constraints))
+                tracks = set().union(*(self.block_tracks(b, c) for c in b.constraints))
             elif b.kind is sc.BlockKind.HOLD:
                 tracks = self.held_tracks(b)
             elif b.kind is sc.BlockKind.TRANSPATH:
@@ -449,7 +502,7 @@ class Schedule:
             if b.kind is sc.BlockKind.CSTR:
                 for c in b.constraints:
                     if not isinstance(c, sc.Trill):
-                        out |= self.comp.tracks_of(c)
+                        out |= self.block_tracks(b, c)
             elif b.kind is sc.BlockKind.HOLD:
                 out |= self.held_tracks(b)
         return out

@@ -12,6 +12,7 @@ from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import Active, GroupPoser, KeyPoser, components, solve_order, violation
 from azee_mj.schedule import DrivenConstraint, Mode, Schedule
 from azee_mj.score import load_score
+from azee_mj.sites import DEFAULT_MAP
 
 
 def _score(constraints, end=0.5):
@@ -103,6 +104,54 @@ def test_a_pinch_of_two_hands_is_not_a_pinch(solver):
     (dc,) = sched.block_constraints(sched.blocks[0])
     assert sched.comp.pinch_track(dc.source) is None
     assert dc.tracks == {"arm_R", "arm_L"}
+
+
+#: weak-idle's contact: the strong palm in front of the chest, the weak palm on it, no
+#: hand shape given.
+PALMS = (
+    {
+        "type": "place",
+        "site": "@PA(s)",
+        "at": {"translate": "^ssp", "by": {"scale": "fwd", "by": 0.05}},
+    },
+    {"type": "place", "site": "@PA(w)", "at": "@PA(s)"},
+)
+
+
+def test_palms_together_without_a_hand_shape_open_the_fingers_as_little_as_they_need(solver, model):
+    # the resting hands' curled fingers kept the palms 29.6 mm apart; free, they open
+    sched = Schedule(_score(list(PALMS)), solver)
+    tracks = [dc.tracks for dc in sched.block_constraints(sched.blocks[0])]
+    assert tracks == [{"arm_R"}, {"arm_R", "arm_L", "hand_R", "hand_L"}]
+    keys = KeyPoser(IKAdapter(sched), Mode.MULTITRACK).key_postures()
+    q = sched.home.copy()
+    for track, d in sched.track_dofs.items():
+        if keys[track]:
+            q[d] = keys[track][-1].q[d]
+    d = solver.at(q).d
+    gap = d.site_xpos[solver.site_id("PA_R")] - d.site_xpos[solver.site_id("PA_L")]
+    assert np.linalg.norm(gap) <= 1e-3
+    e = ergonomics(model, q)
+    assert e.trunk_angle < np.deg2rad(10.0) and e.head_angle < np.deg2rad(15.0)
+    assert all(e.arm(side).elbow_above_shoulder < 0.0 for side in "RL")
+    # relaxed: each hand nearer its resting posture than the flat hand shape would be
+    for side in "RL":
+        changes = DEFAULT_MAP.morphs["flat"].joint_changes(side)
+        cols = [model.jnt_qposadr[solver.joint_id(j)] for j in changes]
+        flat = model.qpos0[cols] + np.array(list(changes.values()))
+        home = sched.home[cols]
+        assert np.abs(q[cols] - home).sum() < np.abs(flat - home).sum()
+
+
+def test_a_palm_contact_keeps_the_hand_shape_a_block_over_it_gives(solver):
+    flat = [{"type": "morph", "id": "flat", "weight": 1.0, "side": s} for s in "sw"]
+    sched = Schedule(load_score(shaped(flat, 0.2, 0.6, *PALMS)), solver)
+    touch = next(b for b in sched.blocks if b.path == "C.K")
+    tracks = [dc.tracks for dc in sched.block_constraints(touch)]
+    assert tracks == [{"arm_R"}, {"arm_R", "arm_L"}]
+    assert sched.comp.palm_hands(touch.constraints[1]) == {"hand_R", "hand_L"}
+    # a palm at a point in space touches nothing: its fingers stay as they are
+    assert sched.comp.palm_hands(touch.constraints[0]) == set()
 
 
 def test_a_miss_does_not_bow_the_trunk(solver):

@@ -224,3 +224,12 @@ def test_a_detour_paced_is_one_bell_when_its_smoothed_corner_pushed_out_is_not(s
     moves = [m for m, a, b in _wrist_moves(r, "WR_L") if a < t1 and b > t0]
     assert len(moves) == 1 and moves[0].peaks == 1
     assert moves[0].sparc >= -1.45
+
+
+def test_a_bend_around_the_body_keeps_every_frame_within_the_joint_ranges(solver):
+    # apart-cross's return to rest: the right clavicle, held at its bound in the crossed
+    # key, was bent 2.6 mrad past it by the detour's curve
+    path = Path(__file__).resolve().parent.parent / "bench/data/motion/apart-cross.json"
+    r = timeline.realize(load_score(json.loads(path.read_text())), solver=solver)
+    q = np.asarray(r.qpos)
+    assert (q >= solver.lower).all() and (q <= solver.upper).all()

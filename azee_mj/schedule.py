@@ -396,6 +396,7 @@ class Schedule:
         self._unions: dict[tuple[int, ...], frozenset[tuple[int, int]]] = {}
         self._moved_cache: dict = {}
         self._shaped: dict[str, frozenset[str]] = {}
+        self._morphed: list[tuple[float, float, frozenset[str]]] | None = None
         self._track_sets: dict[frozenset[str], frozenset[str]] = {}
         self.body_names = [
             mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(self.m.nbody)
@@ -467,14 +468,16 @@ class Schedule:
         once per block)."""
         out = self._shaped.get(b.path)
         if out is None:
-            out = self._shaped[b.path] = frozenset().union(
-                *(
-                    self.comp.tracks_of(m)
+            if self._morphed is None:  # (start, end, tracks) of each block with morphs
+                self._morphed = [
+                    (o.start, o.end, frozenset().union(*(self.comp.tracks_of(m) for m in ms)))
                     for o in self.blocks
-                    if o.kind is sc.BlockKind.CSTR and o.start < b.end and b.start < o.end
-                    for m in o.constraints
-                    if isinstance(m, sc.MorphC)
-                )
+                    if o.kind is sc.BlockKind.CSTR
+                    for ms in [[m for m in o.constraints if isinstance(m, sc.MorphC)]]
+                    if ms
+                ]
+            out = self._shaped[b.path] = frozenset().union(
+                *(t for s, e, t in self._morphed if s < b.end and b.start < e)
             )
         return out
 

@@ -291,9 +291,10 @@ class FrameRenderer:
 
 
 def key_frames(clip: Clip) -> list[tuple[str, int]]:
-    """(label, frame) of the key postures: the middle of each cstr block in time order
-    (blocks with the same middle frame share one, their names joined), or without a score
-    six evenly spaced frames labelled by their time."""
+    """(label, frame) of the key postures: the middle of each cstr block in time order, on
+    the clip's clock (after the lead-in from rest; blocks with the same middle frame share
+    one, their names joined), or without a score six evenly spaced frames labelled by their
+    time."""
     if clip.score is not None:
         root = clip.score.root.path
         blocks = [b for b in clip.score.blocks() if b.kind is sc.BlockKind.CSTR]
@@ -301,7 +302,8 @@ def key_frames(clip: Clip) -> list[tuple[str, int]]:
         byframe: dict[int, list[str]] = {}  # blocks sharing a middle frame share a tile
         for b in blocks:
             name = b.path[len(root) + 1 :] if b.path.startswith(root + ".") else b.path
-            byframe.setdefault(clip.frame_at(0.5 * (b.start + b.end)), []).append(name)
+            middle = clip.score_start + 0.5 * (b.start + b.end)
+            byframe.setdefault(clip.frame_at(middle), []).append(name)
         if byframe:
             return [(", ".join(names), f) for f, names in byframe.items()]
     idx = np.linspace(0, len(clip.time) - 1, min(6, len(clip.time))).round().astype(int)

@@ -308,6 +308,17 @@ def test_gif_frames_and_timing(clip, gl, tmp_path):
     assert total == 100 * n
 
 
+def test_key_frames_are_the_middles_of_their_blocks_on_the_clips_clock(clip):
+    # the clip starts with a lead-in from rest: the score's time 0 is not the clip's
+    assert clip.score_start > 0.0
+    root = clip.score.root.path
+    for label, f in rd.key_frames(clip):
+        spans = [i for v in clip.schedule.values() for i in v if i.block == f"{root}.{label}"]
+        assert spans, label
+        middle = 0.5 * (spans[0].start + spans[0].end)
+        assert abs(clip.time[f] - middle) <= 0.5 / clip.fps
+
+
 @pytest.mark.extra("render")
 def test_contact_sheet_of_key_postures(clip, gl, tmp_path):
     out = tmp_path / "sheet.png"

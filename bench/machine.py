@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import datetime
 import importlib.metadata as md
+import json
 import os
 import platform
+import sys
 from pathlib import Path
 
 import mujoco
@@ -44,3 +46,13 @@ def machine(**extra) -> dict:
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         **extra,
     }
+
+
+def write_result(out: Path, doc: dict) -> None:
+    """Write a results document ``doc`` as JSON to ``out`` whole or not at all (through a
+    temporary file renamed over it), and say where on stderr."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.replace(out)
+    print(f"wrote {out}", file=sys.stderr)

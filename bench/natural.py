@@ -41,7 +41,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -53,7 +52,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
-from machine import machine
+from machine import machine, write_result
 
 from azee_mj import constraints as cn
 from azee_mj import ik, load_model
@@ -909,11 +908,7 @@ def main(argv=None) -> int:
                 "held_out": held_recs,
             },
         }
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(out.name + ".tmp")
-        tmp.write_text(json.dumps(doc, indent=1) + "\n")
-        tmp.replace(out)
-        print(f"wrote {out}", file=sys.stderr)
+        write_result(out, doc)
     return 0
 
 

@@ -27,7 +27,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -39,7 +38,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 import natural as nat
-from machine import machine
+from machine import machine, write_result
 
 from azee_mj import constraints as cn
 from azee_mj import ik
@@ -184,10 +183,7 @@ def main(argv=None) -> int:
         HERE / "results" / (f"reach-bound-{args.label}.json" if args.label else "reach-bound.json")
     )
     doc = {"machine": machine(), "held_upright": HELD, "records": recs}
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    tmp.replace(out)
-    print(f"wrote {out}", file=sys.stderr)
+    write_result(out, doc)
     return 0
 
 

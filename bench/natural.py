@@ -538,8 +538,8 @@ def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict
     wall = time.perf_counter() - t0
     touch = [t for t in ro.traces if t.block.endswith("TOUCH")]
     held = held_frame(ro)
-    site, at = (_resolve(x, side) for x in contact[4:6])
-    pairs = [meas.contact_pair(*(_resolve(x, side) for x in p)) for p in places(contact)]
+    site, at = (site_name(x, side) for x in contact[4:6])
+    pairs = [meas.contact_pair(*(site_name(x, side) for x in p)) for p in places(contact)]
     clock = ro.time - ro.score_start  # the score's clock (the lead-in from rest comes first)
     in_hold = np.flatnonzero((clock >= HOLD[0] - 1e-9) & (clock < HOLD[1]))
     pens = [meas.penetration(q, pairs) for q in ro.qpos]
@@ -571,7 +571,7 @@ def run_ours(contact, side: str, meas: Measure, solver: ik.Solver) -> tuple[dict
     return rec, ro
 
 
-def _resolve(ref: str, side: str) -> str:
+def site_name(ref: str, side: str = "R") -> str:
     """``@PA(s)`` with strong side ``side`` -> ``PA_R``; ``@M_BACK(s,2)`` -> ``M_BACK_R_2``;
     ``@CH`` -> ``CH``."""
     ref = ref.lstrip("@")
@@ -588,7 +588,7 @@ def mink_problem(contact, side: str, model: mujoco.MjModel):
     touch = score.block("C.TOUCH")
     tracks = set(constraint_tracks(touch.constraints[0], model)) | {"spine"}
     free = tuple(j for t in sorted(tracks) for j in DEFAULT_MAP.tracks[t])
-    site, at = (_resolve(x, side) for x in contact[4:6])
+    site, at = (site_name(x, side) for x in contact[4:6])
     prob = ik.IKProblem(
         (cn.Place(DEFAULT_MAP.sites[site], kin.SitePos(DEFAULT_MAP.sites[at]), 0.001, "TOUCH"),),
         free,

@@ -45,7 +45,7 @@ from azee_mj import ik
 from azee_mj import kinematics as kin
 from azee_mj.ergonomics import ergonomics
 from azee_mj.schedule import make_solver
-from azee_mj.sites import DEFAULT_MAP, resolve_side
+from azee_mj.sites import DEFAULT_MAP
 
 #: Bodies of a hand (its palm and digits), named ``..._R`` / ``..._L`` or with a phalanx.
 HAND = ("palm", "thumb", "index", "middle", "ring", "little")
@@ -53,21 +53,11 @@ HAND = ("palm", "thumb", "index", "middle", "ring", "little")
 HELD = ("back", "neck", "head")
 
 
-def site_name(ref: str, side: str = "R") -> str:
-    """``@PA(s)`` -> ``PA_R`` (strong side ``side``); ``@M_BACK(s,2)`` -> ``M_BACK_R_2``."""
-    ref = ref.lstrip("@")
-    if "(" not in ref:
-        return ref
-    stem, args = ref[:-1].split("(")
-    s, *n = args.split(",")
-    return "_".join((stem, resolve_side(s, side), *n))
-
-
 def problem(contact, model: mujoco.MjModel) -> tuple[ik.IKProblem, np.ndarray, list]:
     """(the contact's placements freeing its arms only, the start with the hand shapes,
     the model site pairs placed) for the right-handed contact."""
     base, q0, _, _ = nat.mink_problem(contact, "R", model)
-    pairs = [tuple(DEFAULT_MAP.sites[site_name(x)] for x in p) for p in nat.places(contact)]
+    pairs = [tuple(DEFAULT_MAP.sites[nat.site_name(x)] for x in p) for p in nat.places(contact)]
     cons = tuple(cn.Place(a, kin.SitePos(b), 0.001, f"place {i}") for i, (a, b) in enumerate(pairs))
     arms = {"R"} | ({"L"} if any("_L" in a + b for a, b in pairs) else set())
     limbs = ("clav", "arm", "f", "palm")

@@ -20,10 +20,10 @@ CONTACTS = {c[0]: c for c in nat.CONTACTS + nat.HELD_OUT}
 
 
 def test_site_names_resolve_the_strong_side():
-    assert rb.site_name("@PA(s)") == "PA_R"
-    assert rb.site_name("@PA(w)") == "PA_L"
-    assert rb.site_name("@M_BACK(s,2)") == "M_BACK_R_2"
-    assert rb.site_name("@NK") == "NK"
+    assert nat.site_name("@PA(s)") == "PA_R"
+    assert nat.site_name("@PA(w)") == "PA_L"
+    assert nat.site_name("@M_BACK(s,2)") == "M_BACK_R_2"
+    assert nat.site_name("@NK") == "NK"
 
 
 @pytest.mark.parametrize(

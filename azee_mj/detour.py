@@ -111,12 +111,14 @@ class Detour:
         solver = adapter.solver
         self._pairs = solver.all_pairs  # with the coordinates moving each, see depths
         self._pair_q = pair_coordinates(solver.model, self._pairs)
+        self._lower, self._upper = solver.lower, solver.upper  # per dof: a hinge's, its qpos's
 
     def apply(self, q: np.ndarray, times: np.ndarray, moving: np.ndarray, names) -> np.ndarray:
         """Every arm's blend (its runs of ``moving`` (T, tracks) of tracks ``names``) in
         ``q`` (T, nq) at ``times`` [s] that goes into the body, bent out of it (in place).
         The blends that move their joints furthest go first: of two arms whose blends meet,
-        the one that travels goes around the other, which may then stay straight."""
+        the one that travels goes around the other, which may then stay straight. A bent
+        blend keeps within the joint ranges."""
         blends = []
         for ti, t in enumerate(names):
             if t.startswith("arm_"):
@@ -136,7 +138,10 @@ class Detour:
                 # not bent: its deepest frames next to an end, where its progress is slow
                 new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints, timed=True)
             if new is not None and not self.rushed(q[a : b + 1], new, d, t, times):
-                q[a : b + 1, d] = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
+                bent = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
+                # a bend's curve through its vias may overshoot a joint its keys hold at a
+                # bound (apart-cross's clavicle, 2.6 mrad past it): it keeps to the ranges
+                q[a : b + 1, d] = np.clip(bent, self._lower[d], self._upper[d])
                 self.bent.append((t, a, b))
         return q
 

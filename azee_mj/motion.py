@@ -520,9 +520,6 @@ class Motion:
         if flattened:
             return self.flat_transpaths(q, times)
         Detour(self.adapter).apply(q, times, moving, names)
-        # a bend's curve through its vias may overshoot a joint held at its bound in a key
-        # (apart-cross's clavicle, 2.6 mrad past it); the frames keep within the ranges
-        np.clip(q, self.adapter.solver.lower, self.adapter.solver.upper, out=q)
         solver = FrameSolver(self.adapter, self.fps)
         q = solver.solve(q, times, moving, names, keys)
         return Pacer(self.adapter, self.fps).pace(q, times, moving, names, solver.held_frames)

@@ -28,7 +28,7 @@ from azee_mj import score as sc
 from azee_mj.anatomy import descends
 from azee_mj.blend import EPS, Key
 from azee_mj.ikadapter import IKAdapter
-from azee_mj.kinematics import BodyAxis, SitePos
+from azee_mj.kinematics import SitePos
 
 #: How far [rad] the hand may turn from the orientation preferred for it before the pull
 #: back counts as much as a constraint at its tolerance (a row of 1).
@@ -57,16 +57,15 @@ class HandOrientation:
         """Rows (6,) and their Jacobian (6, nv) on the posture of kinematics ``k`` (an
         axis ``a`` turns as ``w x a`` with the body's angular velocity ``w``; asked at
         every iteration of a path's frame solves, so worked out here in one go)."""
-        bid = k.names.body(self.body)
-        axes = _LOCAL @ k.d.xmat[bid].reshape(3, 3).T  # (2, 3): R @ local, per axis
-        w = k.body_rot_jac(bid).T  # (nv, 3)
+        axes = hand_axes(k, self.body)
+        w = k.body_rot_jac(k.names.body(self.body)).T  # (nv, 3)
         J = np.vstack([np.cross(w, a).T for a in axes])
         return (axes - self.axes).ravel() / self.tol, J / self.tol
 
 
 def hand_axes(k, body: str) -> np.ndarray:
     """(2, 3) the world directions of hand ``body``'s :data:`HAND_AXES` on kinematics ``k``."""
-    return np.array([k.value(BodyAxis(body, a)) for a in HAND_AXES])
+    return _LOCAL @ body_rotation(k, body).T  # (2, 3): R @ local, per axis
 
 
 def hand_turn(R0: np.ndarray, R1: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -86,7 +85,7 @@ def hand_turn(R0: np.ndarray, R1: np.ndarray, u: np.ndarray) -> np.ndarray:
     else:
         n = np.zeros(3)
     K = np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
-    local = R0 @ np.array(HAND_AXES).T  # (3, 2): the axes at the start
+    local = R0 @ _LOCAL.T  # (3, 2): the axes at the start
     a = np.asarray(u, float)[:, None, None] * angle
     turns = np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)  # (F, 3, 3)
     return np.swapaxes(turns @ local, 1, 2)
@@ -94,7 +93,7 @@ def hand_turn(R0: np.ndarray, R1: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 def body_rotation(k, body: str) -> np.ndarray:
     """(3, 3) the rotation of ``body`` (body to world) on kinematics ``k``."""
-    return np.column_stack([k.value(BodyAxis(body, tuple(a))) for a in np.eye(3)])
+    return k.d.xmat[k.names.body(body)].reshape(3, 3).copy()
 
 
 def around(keys: list[Key], start: float, end: float) -> tuple[int, int] | None:

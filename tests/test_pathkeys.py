@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -16,7 +17,7 @@ from azee_mj import pathkeys as pk
 from azee_mj.blend import Key
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import KeyPoser
-from azee_mj.kinematics import Const, SitePos
+from azee_mj.kinematics import BodyAxis, Const, SitePos
 from azee_mj.schedule import Mode, Schedule
 from azee_mj.score import load_score
 from azee_mj.timeline import realize
@@ -120,7 +121,9 @@ def test_hand_orientation_rows_and_jacobian(solver):
     pref = pk.HandOrientation("palm_R", want)
     rows, J = pref.rows(solver.at(q, jacobians=True))
     k = solver.at(q)
-    np.testing.assert_allclose(rows, (pk.hand_axes(k, "palm_R") - want).ravel() / pref.tol)
+    axes = np.array([k.value(BodyAxis("palm_R", a)) for a in pk.HAND_AXES])  # the geometry's
+    np.testing.assert_allclose(pk.hand_axes(k, "palm_R"), axes, atol=1e-12)
+    np.testing.assert_allclose(rows, (axes - want).ravel() / pref.tol, atol=1e-9)
     h = 1e-6
     for v in range(solver.model.nv):  # hinge joints only: dof v is qpos v
         dq = np.zeros_like(q)
@@ -132,7 +135,11 @@ def test_hand_orientation_rows_and_jacobian(solver):
 def test_body_rotation_is_the_bodys_frame(solver):
     k = solver.at(solver.natural)
     R = pk.body_rotation(k, "palm_R")
-    np.testing.assert_allclose(R, solver.data.xmat[solver.model.body("palm_R").id].reshape(3, 3))
+    from_quat = np.zeros(9)  # the body's orientation as MuJoCo keeps it, a quaternion
+    mujoco.mju_quat2Mat(from_quat, solver.data.xquat[solver.model.body("palm_R").id])
+    np.testing.assert_allclose(R, from_quat.reshape(3, 3), atol=1e-12)
+    for i in range(3):  # its columns: the body's axes
+        np.testing.assert_allclose(R[:, i], k.value(BodyAxis("palm_R", tuple(np.eye(3)[i]))))
 
 
 def penser_right() -> dict:

@@ -76,6 +76,16 @@ def deepest_contact(m, d, allowed) -> float:
     return max(deep, default=0.0)
 
 
+def collided_at_random(solver, rng) -> mujoco.MjData:
+    """New data of ``solver``'s model at a posture drawn uniformly within the joint ranges,
+    its kinematics and ``mj_collision``'s contacts run."""
+    d = mujoco.MjData(solver.model)
+    d.qpos[:] = rng.uniform(solver.lower, solver.upper)
+    mujoco.mj_kinematics(solver.model, d)
+    mujoco.mj_collision(solver.model, d)
+    return d
+
+
 def test_contact_depth_in_the_core_is_the_deepest_contact_mujoco_finds(solver):
     """The compiled core's reading of ``mj_collision``'s contacts gives, to the bit, the
     deepest penetration outside the allowed body pairs, on postures that go into the body
@@ -85,10 +95,7 @@ def test_contact_depth_in_the_core_is_the_deepest_contact_mujoco_finds(solver):
     rng = np.random.default_rng(7)
     deep = 0
     for _ in range(40):
-        d = mujoco.MjData(m)
-        d.qpos[:] = rng.uniform(solver.lower, solver.upper)
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_collision(m, d)
+        d = collided_at_random(solver, rng)
         i = int(np.argmin(d.contact.dist[: d.ncon])) if d.ncon else 0
         a, b = m.geom_bodyid[d.contact.geom[i]].tolist() if d.ncon else (1, 2)
         for allowed in (
@@ -112,10 +119,7 @@ def test_pairs_depth_is_the_depth_of_mujocos_contacts_pair_by_pair(solver):
     rng = np.random.default_rng(11)
     deep = 0
     for _ in range(30):
-        d = mujoco.MjData(m)
-        d.qpos[:] = rng.uniform(solver.lower, solver.upper)
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_collision(m, d)
+        d = collided_at_random(solver, rng)
         want: dict[tuple, float] = {}
         for g, dist in zip(d.contact.geom[: d.ncon].tolist(), d.contact.dist[: d.ncon]):
             key = tuple(sorted(g))

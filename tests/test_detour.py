@@ -106,6 +106,13 @@ def leaving(sentence, sign: str, wrist: str) -> mv.Movement:
     return moves[0]
 
 
+def net_move(sentence, m: mv.Movement, wrist: str) -> float:
+    """How far [m] ``wrist`` is from where it started at the end of movement ``m``."""
+    _, r = sentence
+    pos = r.site_pos[:, r.site_names.index(wrist)]
+    return float(np.linalg.norm(pos[m.last] - pos[m.first]))
+
+
 def test_leaving_the_second_arbre_the_left_hand_goes_around_in_one_movement(sentence):
     # Leaving the sentence's second arbre (the right elbow on the back of the left hand)
     # for info-about, the straight blend of the left arm goes through the right forearm;
@@ -115,9 +122,7 @@ def test_leaving_the_second_arbre_the_left_hand_goes_around_in_one_movement(sent
     m = leaving(sentence, "S7_ARBRE", "WR_L")
     assert m.peaks == 1
     assert m.peak_speed < 2.0
-    _, r = sentence
-    pos = r.site_pos[:, r.site_names.index("WR_L")]
-    assert m.path_length < 1.5 * np.linalg.norm(pos[m.last] - pos[m.first])
+    assert m.path_length < 1.5 * net_move(sentence, m, "WR_L")
 
 
 def test_leaving_the_first_arbre_the_left_hand_goes_around_in_one_bell(sentence):
@@ -127,9 +132,7 @@ def test_leaving_the_first_arbre_the_left_hand_goes_around_in_one_bell(sentence)
     m = leaving(sentence, "S2_ARBRE", "WR_L")
     assert m.peaks == 1
     assert m.sparc >= -1.45
-    _, r = sentence
-    pos = r.site_pos[:, r.site_names.index("WR_L")]
-    assert m.path_length < 1.5 * np.linalg.norm(pos[m.last] - pos[m.first])
+    assert m.path_length < 1.5 * net_move(sentence, m, "WR_L")
 
 
 def test_leaving_the_temple_the_hand_goes_to_bien_in_one_bell(sentence):

@@ -449,6 +449,45 @@ static PyObject* mod_pairs_depth(PyObject* self, PyObject* args) {
   return PyFloat_FromDouble(depth);
 }
 
+/* pairs_depths(model_addr, data_addr, qpos float64 (n, nq), pairs int32 (p, 2), allowed int32
+   (k, 2)) -> bytes of n doubles: pairs_depth at each posture, its kinematics run (a run of
+   frames in one call); data holds the last posture afterwards. */
+static PyObject* mod_pairs_depths(PyObject* self, PyObject* args) {
+  (void)self;
+  unsigned long long ma, da;
+  PyObject *oq, *op, *oa, *out = NULL;
+  if (!PyArg_ParseTuple(args, "KKOOO", &ma, &da, &oq, &op, &oa)) return NULL;
+  const mjModel* m = (const mjModel*)(uintptr_t)ma;
+  mjData* d = (mjData*)(uintptr_t)da;
+  Py_buffer Q = {0}, P = {0}, B = {0};
+  if (get_buf(oq, &Q, 8, -1, "qpos", 0)) return NULL;
+  if (get_buf(op, &P, 4, -1, "pairs", 0)) return release(&Q), NULL;
+  if (get_buf(oa, &B, 4, -1, "allowed", 0)) return release(&Q), release(&P), NULL;
+  const int32_t* g = P.buf;
+  int np = (int)(P.len / 8), bad = P.len % 8 != 0 || (Q.len / 8) % m->nq != 0;
+  for (int i = 0; i < 2 * np && !bad; i++) bad = g[i] < 0 || g[i] >= m->ngeom;
+  Py_ssize_t n = (Py_ssize_t)(Q.len / 8 / m->nq);
+  double* depth = bad ? NULL : malloc(sizeof(double) * (size_t)(n ? n : 1));
+  if (bad) {
+    PyErr_SetString(PyExc_ValueError, "qpos: rows of nq values; pairs: geom ids in range");
+  } else if (!depth) {
+    PyErr_NoMemory();
+  } else {
+    const double* q = Q.buf;
+    for (Py_ssize_t i = 0; i < n; i++) {
+      mju_copy(d->qpos, q + i * m->nq, m->nq);
+      mj_kinematics(m, d);
+      depth[i] = pairs_depth(m, d, g, np, B.buf, (int)(B.len / 8));
+    }
+    out = as_bytes(depth, n);
+  }
+  free(depth);
+  release(&Q);
+  release(&P);
+  release(&B);
+  return out;
+}
+
 /* {name: (sizeof, {field: offsetof})} of the records shared with Python. */
 #define FIELD(T, f) PyTuple_Pack(2, PyUnicode_FromString(#f), PyLong_FromSsize_t(offsetof(T, f)))
 static PyObject* record(Py_ssize_t size, PyObject* const* fields, int n) {
@@ -520,6 +559,9 @@ static PyMethodDef mod_methods[] = {
     {"pairs_depth", mod_pairs_depth, METH_VARARGS,
      "pairs_depth(model_addr, data_addr, pairs, allowed) -> the deepest penetration [m] among "
      "geom pairs."},
+    {"pairs_depths", mod_pairs_depths, METH_VARARGS,
+     "pairs_depths(model_addr, data_addr, qpos, pairs, allowed) -> bytes of one pairs_depth "
+     "per posture (its kinematics run)."},
     {"layout", mod_layout, METH_NOARGS,
      "layout() -> {record: (sizeof, {field: offsetof})} of Block, Term and Tunables."},
     {NULL, NULL, 0, NULL}};

@@ -243,6 +243,18 @@ def pairs_depth(
     return native.core().pairs_depth(m._address, d._address, pairs, _pair_array(allowed))
 
 
+def run_pairs_depth(
+    m: mujoco.MjModel, d: mujoco.MjData, qs: np.ndarray, pairs: np.ndarray, allowed=frozenset()
+) -> np.ndarray:
+    """(n,) :func:`pairs_depth` at each posture of ``qs`` (n, nq), its kinematics run, in
+    one call of the compiled core (``d`` holds the last posture afterwards)."""
+    qs = np.ascontiguousarray(qs, float)
+    if qs.ndim != 2 or qs.shape[1] != m.nq:
+        raise ValueError(f"postures: expected (n, {m.nq}), got {qs.shape}")
+    raw = native.core().pairs_depths(m._address, d._address, qs, pairs, _pair_array(allowed))
+    return np.frombuffer(raw)
+
+
 @functools.lru_cache(maxsize=256)
 def _pair_array(allowed: frozenset) -> np.ndarray:
     """Body pairs ``allowed`` as an (n, 2) int32 array (the schedule shares its sets: each

@@ -297,22 +297,20 @@ class Detour:
         if allowed_at is None:
             allowed_at = [self.schedule.allowed_at(t) for t in times]
         s = np.linspace(0.0, 1.0, len(run))
-        out = np.empty(len(run))
-        keys: dict[frozenset, tuple[float, float]] = {}  # the keys' depths, per allowed set
         # The pairs the run moves are measured at every frame, the others once.
         still = still_pairs(self._pair_q, run)
         moved = np.ascontiguousarray(self._pairs[~still])
         kept = np.ascontiguousarray(self._pairs[still])
-        rest: dict[frozenset, float] = {}  # the still pairs' depth, per allowed set
-        for i, (x, allowed) in enumerate(zip(run, allowed_at)):
-            if allowed not in keys:
-                keys[allowed] = (self.depth(run[0], allowed), self.depth(run[-1], allowed))
-                k = self.adapter.at(run[0])
-                rest[allowed] = cn.pairs_depth(k.m, k.d, kept, allowed)
-            first, last = keys[allowed]
-            x_depth = self.depth(x, allowed, (moved, rest[allowed]))
-            out[i] = max(x_depth - ((1.0 - s[i]) * first + s[i] * last), 0.0)
-        return out
+        frames: dict[frozenset, list[int]] = {}  # the frames of each allowed set
+        for i, allowed in enumerate(allowed_at):
+            frames.setdefault(allowed, []).append(i)
+        depth, first, last = np.empty(len(run)), np.empty(len(run)), np.empty(len(run))
+        for allowed, idx in frames.items():
+            first[idx], last[idx] = self.depth(run[0], allowed), self.depth(run[-1], allowed)
+            k = self.adapter.at(run[0])
+            rest = cn.pairs_depth(k.m, k.d, kept, allowed)
+            depth[idx] = self.adapter.depths(run[idx], allowed, (moved, rest))
+        return np.maximum(depth - ((1.0 - s) * first + s * last), 0.0)
 
     def depth(self, q: np.ndarray, allowed, split=None) -> float:
         """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``

@@ -136,6 +136,23 @@ class IKAdapter:
         self._depths[key] = out
         return out
 
+    def depths(self, qs: np.ndarray, allowed, split) -> np.ndarray:
+        """(n,) :meth:`depth` of each posture of ``qs`` (n, nq) with ``split`` (not
+        ``posed``): those not measured before in one call of the compiled core (a detour
+        measures every frame of a blend at each bend). The solver's data holds no
+        particular posture afterwards."""
+        keys = [(q.tobytes(), allowed) for q in qs]
+        out = np.array([self._depths.get(key, np.nan) for key in keys])
+        todo = np.flatnonzero(np.isnan(out))
+        if todo.size:
+            m, d = self.solver.model, self.solver.data
+            got = np.maximum(cn.run_pairs_depth(m, d, qs[todo], split[0], allowed), split[1])
+            if len(self._depths) + todo.size > DEPTHS_KEPT:
+                self._depths.clear()
+            for i, value in zip(todo.tolist(), got.tolist()):
+                self._depths[keys[i]] = out[i] = value
+        return out
+
     def dofs(self, joints) -> np.ndarray:
         """Dof indices of joint names (in their order; looked up once per sequence)."""
         key = tuple(joints)

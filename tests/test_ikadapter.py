@@ -163,3 +163,54 @@ def test_pairs_depth_refuses_geoms_the_model_does_not_have(solver):
     bad = np.array([[0, m.ngeom]], np.int32)
     with pytest.raises(ValueError, match="^pairs: geom ids out of range$"):
         cn.pairs_depth(m, d, bad)
+
+
+def test_a_run_of_pairs_depths_is_each_postures_pairs_depth(solver):
+    """The compiled run over many postures gives, to the bit, :func:`pairs_depth` on each
+    posture's own kinematics, and leaves the data on the last posture."""
+    m = solver.model
+    rng = np.random.default_rng(5)
+    qs = rng.uniform(solver.lower, solver.upper, size=(12, m.nq))
+    pairs = np.ascontiguousarray(solver.all_pairs[::3])
+    for allowed in (frozenset(), frozenset({(1, 2), (2, 1)})):
+        d = mujoco.MjData(m)
+        got = cn.run_pairs_depth(m, d, qs, pairs, allowed)
+        np.testing.assert_array_equal(d.qpos, qs[-1])
+        want = []
+        for q in qs:
+            d2 = mujoco.MjData(m)
+            d2.qpos[:] = q
+            mujoco.mj_kinematics(m, d2)
+            want.append(cn.pairs_depth(m, d2, pairs, allowed))
+        assert got.tolist() == want
+        assert (got > 0.0).sum() >= 3  # several postures went into the body
+
+
+def test_a_run_of_pairs_depths_refuses_postures_of_another_size(solver):
+    m = solver.model
+    d = mujoco.MjData(m)
+    with pytest.raises(ValueError, match=rf"^postures: expected \(n, {m.nq}\), got \(2, 3\)$"):
+        cn.run_pairs_depth(m, d, np.zeros((2, 3)), np.ascontiguousarray(solver.all_pairs))
+
+
+def test_the_adapters_depths_of_a_run_are_its_depths_one_by_one(solver):
+    """:meth:`IKAdapter.depths` (split, in one call) gives each posture's :meth:`depth`
+    with the same split, known or not (half of them asked before)."""
+    adapter = IKAdapter(Schedule(load_score(envelope(sync("S", 0.4))), solver))
+    m = solver.model
+    rng = np.random.default_rng(8)
+    joints = adapter.schedule.track_joints
+    arms = adapter.dofs(sorted(joints["arm_R"] + joints["arm_L"]))
+    qs = np.tile(solver.natural, (10, 1))
+    qs[:, arms] = rng.uniform(solver.lower[arms], solver.upper[arms], size=(10, len(arms)))
+    pairs = solver.all_pairs
+    moved, rest = np.ascontiguousarray(pairs[::2]), 0.001
+    one_by_one = IKAdapter(adapter.schedule)
+    want = [one_by_one.depth(q, frozenset(), posed=False, split=(moved, rest)) for q in qs]
+    for q in qs[::2]:
+        adapter.depth(q, frozenset(), posed=False, split=(moved, rest))
+    got = adapter.depths(qs, frozenset(), (moved, rest))
+    assert got.tolist() == want
+    assert max(want) > rest  # some posture deeper than the pairs it leaves out
+    assert adapter.depths(qs, frozenset(), (moved, rest)).tolist() == want  # kept
+    assert m.nq == qs.shape[1]

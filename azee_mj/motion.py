@@ -25,6 +25,7 @@ from azee_mj import score as sc
 from azee_mj.blend import (
     BLEND_SPEED,
     BRANCH_SPEED,
+    EPS,
     MAX_BLEND,
     MAX_JOINT_SPEED,
     MAX_REST_MOVE,
@@ -430,6 +431,7 @@ class Motion:
                 end = max(end, at + r.relax)
             self.rests[t] = r
             lead = max(lead, r.lead - first.start)
+        self.tie_carriers(keys)
         self.tie_hands(keys)
         self.lead_frames = int(np.ceil(lead * self.fps - 1e-6))
         self.end = end if end <= sched.score.duration else np.ceil(end * self.fps) / self.fps
@@ -453,6 +455,32 @@ class Motion:
             if p is not None:
                 out.append(p)
         return tuple(out)
+
+    def tie_carriers(self, keys) -> None:
+        """Tracks that come from rest into first keys starting together and sharing a
+        constraint (a trunk recruited to carry the arms to a far place, and those arms)
+        take the longest of their lead-ins: the trunk leaning on its own, shorter time
+        would add a speed peak of its own to the hands it carries."""
+        first = {
+            t: keys[t][0]
+            for t, r in self.rests.items()
+            if r.lead is not None and keys[t] and not t.startswith("hand")
+        }
+        groups: list[set[str]] = []
+        for t, k in first.items():
+            joined = [
+                g
+                for g in groups
+                if any(
+                    abs(first[u].start - k.start) < EPS and set(first[u].cons) & set(k.cons)
+                    for u in g
+                )
+            ]
+            groups = [g for g in groups if g not in joined] + [{t}.union(*joined)]
+        for g in groups:
+            lead = max(self.rests[u].lead for u in g)
+            for u in g:
+                self.rests[u] = dataclasses.replace(self.rests[u], lead=lead)
 
     def tie_hands(self, keys) -> None:
         """A hand shape forms while its arm travels: a hand track whose first posture starts

@@ -233,3 +233,41 @@ def test_a_bend_around_the_body_keeps_every_frame_within_the_joint_ranges(solver
     r = timeline.realize(load_score(json.loads(path.read_text())), solver=solver)
     q = np.asarray(r.qpos)
     assert (q >= solver.lower).all() and (q <= solver.upper).all()
+
+
+def test_a_trunk_recruited_for_the_first_sign_leans_in_with_the_arms(solver):
+    """Both flat hands far forward: the trunk helps from the first key. It came from rest
+    in 0.3 s (its own lean's time) while the arms took 1.03 s, so each wrist's lead-in
+    had two speed peaks (SPARC -1.72); the trunk now takes the arms' lead-in: one bell,
+    the trunk and both arms starting together."""
+    far = {"add": [{"scale": "fwd", "by": 0.62}, {"scale": "lat(s)", "by": 0.12}]}
+    far_w = {"add": [{"scale": "fwd", "by": 0.62}, {"scale": "lat(w)", "by": 0.12}]}
+    score = envelope(
+        sync(
+            "REACH",
+            0.8,
+            cstr(
+                "SHAPE",
+                0.2,
+                0.8,
+                {"type": "morph", "id": "flat", "weight": 1.0, "side": "s"},
+                {"type": "morph", "id": "flat", "weight": 1.0, "side": "w"},
+            ),
+            cstr(
+                "FAR",
+                0.2,
+                0.8,
+                {"type": "place", "site": "@PA(s)", "at": {"translate": "@AB", "by": far}},
+                {"type": "place", "site": "@PA(w)", "at": {"translate": "@AB", "by": far_w}},
+            ),
+        )
+    )
+    r = timeline.realize(load_score(score), solver=solver)
+    spine = [solver.model.joint(j).qposadr[0] for j in DEFAULT_MAP.tracks["spine"]]
+    lead = r.time < r.score_start + 0.2
+    assert np.abs(r.qpos[-1, spine] - r.qpos[0, spine]).max() < 1e-9  # back at rest
+    assert np.abs(r.qpos[lead][:, spine] - r.qpos[0, spine]).max(axis=1)[1] > 0.0  # leaning
+    for wrist in ("WR_R", "WR_L"):
+        moves = [m for m, a, b in _wrist_moves(r, wrist) if a < r.score_start + 0.2]
+        assert len(moves) == 1 and moves[0].peaks == 1
+        assert -1.6 <= moves[0].sparc <= -1.35

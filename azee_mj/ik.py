@@ -38,7 +38,7 @@ import numpy as np
 from azee_mj.constraints import PENETRATION_LIMIT, Constraint, Place
 from azee_mj.contact import head_on, widened
 from azee_mj.kinematics import Kinematics, Names
-from azee_mj.natural import Effort, Naturalness
+from azee_mj.natural import Effort, Naturalness, rows
 from azee_mj.posture import equalities, starts
 from azee_mj.posture.collision import collision_pairs, geom_clusters, moving_pairs
 from azee_mj.posture.contract import (
@@ -407,6 +407,18 @@ def head_on_first(solve_once, problem: IKProblem, q0, preference_cost=None) -> I
         if pb > max(2.0 * pa, pa + 1.0):
             kept = a  # of two misses, the one that keeps the posture natural
     return dataclasses.replace(kept, iterations=a.iterations + b.iterations, time=a.time + b.time)
+
+
+def natural_cost(solver: Solver, problem: IKProblem, q: np.ndarray) -> float:
+    """What the solver minimises among the postures that meet ``problem``, on posture ``q``
+    (nq,): the sum of squares of the effort rows, the comfort rows of the problem's free
+    dofs and its preference rows (0 without a naturalness). Two postures that meet one
+    problem compare by it (lower: more natural)."""
+    if solver.naturalness is None:
+        return 0.0
+    solver.at(q, jacobians=True)
+    r, _ = rows(solver.naturalness, solver.effort, solver.data, solver.free_dofs(problem))
+    return float(r @ r) + solver.preference_cost(problem, q)
 
 
 def _wide_allowed(solver: Solver, problem: IKProblem) -> bool:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
+import functools
 import itertools
 
 import numpy as np
@@ -32,7 +33,7 @@ from azee_mj.diagnose import diagnose
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
 from azee_mj.pathkeys import lead_into_paths
-from azee_mj.preferences import Preferences, widened
+from azee_mj.preferences import UNDER_TOL_DEG, Preferences, widened
 from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
 #: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
@@ -218,7 +219,37 @@ class GroupPoser:
             # Missed with and without facing: the limbs started anywhere (a last resort).
             wide = attempt(facing, wide=True)
             out = wide if wide.converged else out
-        return out
+        return self.from_below(out, q0, t0, where, seeds) if out.converged else out
+
+    def from_below(self, out: GroupSolve, q0, t0: float, where, seeds) -> GroupSolve:
+        """A hand placed on the face with its elbow raised to the shoulder, brought up from
+        below instead: the solve ``out`` (met) again with each such arm's forearm within
+        each of ``UNDER_TOL_DEG`` of vertical
+        (:meth:`~azee_mj.preferences.Preferences.forearms_under`), from ``q0`` and
+        ``seeds`` (the solver keeps its most natural meet of them; its restarts start from
+        generic postures only); of those that meet everything with the elbow low, the most
+        natural by the solver's own measure (:func:`~azee_mj.ik.natural_cost`, without the
+        forearm rows) is kept if it is more natural than ``out``. The usual starts come
+        at a temple head-on from the side and fold the arm up there, the upper arm
+        horizontal; the natural posture lies in another basin, one that no single
+        tolerance reaches from every start."""
+        prefs, ad = self.prefs, self.adapter
+        if not prefs.forearms_under(out.cons, out.free, out.qpos, 0.0):
+            return out
+        problem = ad.problem(out.cons, out.free, q0, t0, preferences=where)
+        cost = functools.partial(ik.natural_cost, ad.solver, problem)
+        best, best_cost = out, cost(out.qpos)
+        for tol in np.radians(UNDER_TOL_DEG):
+            under = prefs.forearms_under(out.cons, out.free, out.qpos, tol)
+            res = ad.solve(out.cons + under, out.free, q0, t0, (q0, *seeds), preferences=where)
+            if not res.converged or prefs.elbows_raised(out.cons, out.free, res.qpos):
+                continue  # a miss, or the elbow still raised
+            c = cost(res.qpos)
+            if c < best_cost:
+                kept = tuple(r for r in res.residuals if r.label != under[0].label)
+                best = GroupSolve(dataclasses.replace(res, residuals=kept), out.cons, out.free)
+                best_cost = c
+        return best
 
     def join_in_front(self, faced: GroupSolve, wide: GroupSolve, cons) -> GroupSolve:
         """Hands join in the signing space before they meet head-on: face to face with a

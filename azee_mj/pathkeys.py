@@ -5,8 +5,8 @@ A ``transpath`` moves a site of a hand (a fingertip) from where the arm's key be
 holds it to where the key after it does; the frames in between follow the joint blend of
 the two keys, solved onto the path. When the score leaves the first key's hand orientation
 free, that key is solved for its placement alone, and its most natural orientation can be
-far from the one the second key asks for (*penser*: the index up along the cheek before the
-circle, level into the temple after it, 82 degrees apart). The hand then turns over while
+far from the one the second key asks for (*penser* as first written: the index up along the
+cheek before the circle, level into the temple after it, 82 degrees apart). The hand then turns over while
 the fingertip traces its path: a small fingertip circle becomes a raise and turn of the
 whole hand, and the wrist moves with two speed peaks. A signer forms the orientation
 before the path and moves the hand along it. So, once every key is solved, such a key is

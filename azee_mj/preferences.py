@@ -50,6 +50,12 @@ FACING_TOL_BODY = 20.0
 ELBOW_LOW = (0.02, 0.02)
 #: How far above the highest brow (or eye) site a placed hand still keeps its elbow low [m].
 BROW_MARGIN = 0.005
+#: How far from vertical [deg] the forearm of a hand placed on the face may be in the solves
+#: that bring the hand up from below (:meth:`Preferences.forearms_under`), each tried.
+UNDER_TOL_DEG = (20.0, 30.0, 45.0, 60.0)
+#: An elbow less than this below its shoulder holds the upper arm nearly horizontal [m]: a
+#: hand on the face held so is solved again from below.
+ELBOW_RAISED = 0.08
 #: Rounded parts of the body [deg]: a fingertip meets them from a range of directions
 #: around the site's normal (the shoulder's cap, the forehead's and the temple's curve),
 #: as far as the fingertip's own roundness lets the site meet within its tolerance without
@@ -177,15 +183,13 @@ class Preferences:
             return (cn.Place(held.palm, held.rest, MEET_TOL, "meet"),)
         return ()
 
-    def elbows_low(self, cons, free, q: np.ndarray) -> tuple[natural.Below, ...]:
-        """A preference, with the naturalness, for each free arm whose hand is placed below
-        the brows (the eyes, the temples, the face below): its elbow no higher than its
-        shoulder (``ELBOW_LOW``). Comfort alone would sometimes fold a raised arm (the
-        upper arm up, the forearm back, or sideways to the horizontal for a temple) rather
-        than bend the wrist; a signer keeps the elbow down unless the hand goes higher."""
+    def _below_brows(self, cons, free, q: np.ndarray):
+        """(arm, target [m, world]) of each free arm whose hand ``cons`` place below the
+        brows (the eyes, the temples, the face below), its first placement, on posture
+        ``q``."""
         brows = [s for a, s in self.smap.sites.items() if a.startswith(("EB_", "EYE_"))]
         if not brows:
-            return ()
+            return []
         k = self.solver.at(q)
         brow_z = max(k.value(SitePos(s))[2] for s in brows) + BROW_MARGIN
         out, done = [], set()
@@ -196,10 +200,56 @@ class Preferences:
             if arm in done or not {arm.flex, arm.abd, arm.rot, arm.elbow} <= free:
                 continue
             done.add(arm)
-            if k.value(c.target)[2] < brow_z:
-                margin, tol = ELBOW_LOW
-                out.append(natural.Below(arm.fore, arm.upper, margin, tol, "elbow low"))
-        return tuple(out)
+            target = k.value(c.target)
+            if target[2] < brow_z:
+                out.append((arm, target))
+        return out
+
+    def elbows_low(self, cons, free, q: np.ndarray) -> tuple[natural.Below, ...]:
+        """A preference, with the naturalness, for each free arm whose hand is placed below
+        the brows (the eyes, the temples, the face below): its elbow no higher than its
+        shoulder (``ELBOW_LOW``). Comfort alone would sometimes fold a raised arm (the
+        upper arm up, the forearm back, or sideways to the horizontal for a temple) rather
+        than bend the wrist; a signer keeps the elbow down unless the hand goes higher."""
+        margin, tol = ELBOW_LOW
+        return tuple(
+            natural.Below(arm.fore, arm.upper, margin, tol, "elbow low")
+            for arm, _ in self._below_brows(cons, free, q)
+        )
+
+    def _on_face(self, cons, free, q: np.ndarray):
+        """(arm, its forearm's bone, its elbow's height above its shoulder [m]) of each
+        free arm whose hand ``cons`` place on the face (above the shoulder, below the
+        brows), on posture ``q``."""
+        fore = {b.body: b for b in self.smap.bones.values()}
+        k = self.solver.at(q)
+        out = []
+        for arm, target in self._below_brows(cons, free, q):
+            bone, shoulder = fore.get(arm.fore), k.value(BodyOrigin(arm.upper))[2]
+            if bone is not None and target[2] > shoulder:
+                out.append((arm, bone, k.value(BodyOrigin(arm.fore))[2] - shoulder))
+        return out
+
+    def elbows_raised(self, cons, free, q: np.ndarray) -> bool:
+        """Whether posture ``q`` holds the elbow of a hand that ``cons`` place on the face
+        less than ``ELBOW_RAISED`` below its shoulder, or above it."""
+        return any(h > -ELBOW_RAISED for _, _, h in self._on_face(cons, free, q))
+
+    def forearms_under(self, cons, free, q: np.ndarray, tol: float) -> tuple[cn.Orient, ...]:
+        """For each free arm whose hand ``cons`` place on the face (above its shoulder,
+        below the brows) and whose elbow posture ``q`` holds nearly at its shoulder's
+        height (less than ``ELBOW_RAISED`` below it: :meth:`elbows_low` is met with the
+        upper arm horizontal; an elbow above the shoulder misses that preference, and the
+        realizer's other arm branches answer it), its forearm within ``tol`` [rad] of
+        vertical: not a preference but the constraints of another solve, the hand brought
+        up from below with the elbow low in front (see
+        :meth:`~azee_mj.keyposes.GroupPoser.from_below`). Empty if none."""
+        up = Const((0.0, 0.0, 1.0))
+        return tuple(
+            cn.Orient(arm.fore, bone.dir, cn.Rel.ALONG, up, tol, "forearm under")
+            for arm, bone, h in self._on_face(cons, free, q)
+            if -ELBOW_RAISED < h <= 0.0
+        )
 
     def elbows_up(self, cons, free, q: np.ndarray) -> set[str]:
         """The upper arms (body names) whose elbow posture ``q`` raises above the shoulder

@@ -423,3 +423,21 @@ def test_a_looks_norm_in_the_core_is_at_least_its_worse_eyes_angle(solver):
         worst = c.residual(solver.at(q)) / c.tol
         assert worst <= norm <= np.sqrt(2.0) * worst + 1e-12
         assert worst > 0.5  # far from the target: the angles matter, not their chords
+
+
+def test_natural_cost_is_what_the_polish_minimises(solver):
+    """:func:`azee_mj.ik.natural_cost` of a polished posture is the cost the core's polish
+    reports for it, preferences included; a raised arm costs more than a hanging one."""
+    elbow = natural.Below("f_arm_R", "arm_R", 0.02, 0.02, "elbow low")
+    problem = ik.IKProblem(
+        (cn.Place("I_TIP_R", kin.Const((0.3, -0.15, 0.45))),), preferences=(elbow,)
+    )
+    met = solver.solve(problem, solver.natural)
+    assert met.converged
+    q, nat, _, _ = solver.plan(problem).polish(met.qpos, [])
+    assert ik.natural_cost(solver, problem, q) == pytest.approx(nat, rel=1e-9)
+    raised = solver.natural.copy()
+    raised[solver.model.jnt_qposadr[solver.joint_id("arm_R_abd")]] = np.radians(120.0)
+    free = ik.IKProblem(problem.constraints)
+    assert ik.natural_cost(solver, free, raised) > ik.natural_cost(solver, free, solver.natural)
+    assert ik.natural_cost(solver, problem, raised) > ik.natural_cost(solver, free, raised)

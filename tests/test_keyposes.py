@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scores import cstr, envelope, shaped
@@ -10,9 +13,12 @@ from azee_mj import ik
 from azee_mj.ergonomics import ergonomics
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.keyposes import Active, GroupPoser, KeyPoser, components, solve_order, violation
+from azee_mj.preferences import ELBOW_RAISED
 from azee_mj.schedule import DrivenConstraint, Mode, Schedule
 from azee_mj.score import load_score
 from azee_mj.sites import DEFAULT_MAP
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _score(constraints, end=0.5):
@@ -254,3 +260,49 @@ def test_a_turned_trunk_does_not_lean_a_bent_one_does(solver):
         "back_2_flex",
         "back_2_lat",
     ]
+
+
+def _touch_key(solver, score):
+    """The arm key posture of the strong hand at the block named ``TOUCH`` of ``score``
+    (JSON), and its side."""
+    side = score["strong_side"]
+    poser = KeyPoser(IKAdapter(Schedule(load_score(score), solver)), Mode.MULTITRACK)
+    keys = poser.key_postures()[f"arm_{side}"]
+    (touch,) = [k for k in keys if any(c.label.endswith("TOUCH#1") for c in k.cons)]
+    assert poser.reasons == {}
+    return touch.q, side
+
+
+@pytest.mark.parametrize("side", ["R", "L"])
+def test_a_fingertip_on_the_temple_comes_from_below_with_the_elbow_low(solver, side):
+    # the index tip on the temple, its direction free: the usual starts come at the
+    # temple head-on from the side and fold the arm up there (main: the elbow 12 mm below
+    # the shoulder, the upper arm 88 degrees from hanging, abducted 45)
+    index = [
+        {"type": "morph", "id": "fist", "weight": 1.0, "side": "s"},
+        {"type": "morph", "id": "index_bend", "weight": -1.04, "side": "s"},
+        {"type": "morph", "id": "index_hook", "weight": -1.1, "side": "s"},
+    ]
+    touch = {"type": "place", "site": "@I_TIP(s)", "at": "@TE(s)"}
+    score = shaped(index, 0.4, 0.8, touch, names=("C", "HS", "TOUCH"))
+    q, _ = _touch_key(solver, {**score, "strong_side": side})
+    e = ergonomics(solver.model, q)
+    arm = e.rula.right if side == "R" else e.rula.left
+    assert e.arm(side).elbow_above_shoulder < -ELBOW_RAISED
+    assert np.degrees(arm.upper_arm_elevation) < 75.0
+    assert np.degrees(e.trunk_angle) <= 10.0 and e.rula.score <= 4
+
+
+def test_penser_touches_the_temple_with_the_elbow_low_on_either_side(solver):
+    # the example as it was written (the index level) held the upper arm horizontal: the
+    # elbow 19 mm below the shoulder, 87 degrees from hanging
+    score = json.loads((ROOT / "examples" / "penser.json").read_text())
+    postures = {}
+    for side in "RL":
+        q, _ = _touch_key(solver, {**score, "strong_side": side})
+        e = ergonomics(solver.model, q)
+        arm = e.rula.right if side == "R" else e.rula.left
+        assert e.arm(side).elbow_above_shoulder < -ELBOW_RAISED
+        assert np.degrees(arm.upper_arm_elevation) < 75.0
+        postures[side] = e.arm(side).elbow_above_shoulder
+    assert postures["R"] == pytest.approx(postures["L"], abs=1e-3)  # mirrored

@@ -155,9 +155,9 @@ def angle(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def test_penser_before_its_circle_holds_the_hand_as_it_touches_after_it(solver):
-    # NEAR leaves the hand free: solved for its placement alone, the index stood up along
-    # the cheek, 82 degrees from TOUCH's level index; the hand then turned over during the
-    # circle. Solved again from TOUCH, it holds the hand as TOUCH does.
+    # NEAR leaves the hand free: solved for its placement alone, its hand can stand far from
+    # TOUCH's (82 degrees when TOUCH asked the index level), and the hand then turned over
+    # during the circle. Solved again from TOUCH, it holds the hand as TOUCH does.
     adapter = IKAdapter(Schedule(load_score(penser_right()), solver))
     near, touch = KeyPoser(adapter, Mode.MULTITRACK).key_postures()["arm_R"]
     assert [c.label for c in near.cons] == ["PENSER.NEAR#1"]

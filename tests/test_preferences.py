@@ -11,6 +11,7 @@ from azee_mj.anatomy import SignerAnatomy
 from azee_mj.kinematics import BodyAxis, Const, SitePos
 from azee_mj.preferences import (
     ELBOW_LOW,
+    ELBOW_RAISED,
     FACING_TOL_BODY,
     FACING_WIDEN,
     MEET_TOL,
@@ -86,6 +87,46 @@ def test_elbows_up_names_the_arms_raised_against_the_preference(prefs, solver):
     assert d.xpos[solver.body_id("f_arm_R")][2] > d.xpos[solver.body_id("arm_R")][2]
     assert prefs.elbows_up([low], free, q) == {"arm_R"}
     assert prefs.elbows_up([high], free, q) == set()  # a hand above the eyes may raise it
+
+
+def _flexed(solver, degrees: float) -> np.ndarray:
+    """The natural posture with the right upper arm raised forward by ``degrees``."""
+    q = solver.natural.copy()
+    q[solver.model.jnt_qposadr[solver.joint_id("arm_R_flex")]] = np.radians(degrees)
+    return q
+
+
+def _elbow_height(solver, q) -> float:
+    d = solver.at(q).d
+    return float(d.xpos[solver.body_id("f_arm_R")][2] - d.xpos[solver.body_id("arm_R")][2])
+
+
+def test_a_hand_on_the_face_with_the_elbow_at_the_shoulder_is_tried_from_below(prefs, solver):
+    q = solver.natural
+    d = solver.at(q).d
+    eye_z = d.site_xpos[solver.site_id("EYE_R")][2]
+    free = DEFAULT_MAP.tracks["arm_R"]
+    face = cn.Place("I_TIP_R", Const((0.1, -0.07, eye_z - 0.02)), 1e-3, "temple")
+    chest = cn.Place("I_TIP_R", Const((0.3, -0.1, eye_z - 0.4)), 1e-3, "chest")
+    level, low, up = _flexed(solver, 85.0), _flexed(solver, 60.0), _flexed(solver, 110.0)
+    assert -ELBOW_RAISED < _elbow_height(solver, level) <= 0.0
+    assert _elbow_height(solver, low) < -ELBOW_RAISED and _elbow_height(solver, up) > 0.0
+    tol = np.radians(30.0)
+    fore = DEFAULT_MAP.bones["f_arm_R"]
+    under = cn.Orient(
+        "f_arm_R", fore.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)), tol, "forearm under"
+    )
+    assert prefs.forearms_under([face], free, level, tol) == (under,)
+    assert prefs.elbows_raised([face], free, level)
+    assert prefs.forearms_under([face], free, low, tol) == ()  # the elbow is low already
+    assert not prefs.elbows_raised([face], free, low)
+    # above the shoulder: the elbow-low preference's own miss, not this start's
+    assert prefs.forearms_under([face], free, up, tol) == ()
+    assert prefs.elbows_raised([face], free, up)
+    # a hand below the shoulder, or an arm that is not free: nothing to try
+    assert prefs.forearms_under([chest], free, level, tol) == ()
+    assert not prefs.elbows_raised([chest], free, level)
+    assert prefs.forearms_under([face], (), level, tol) == ()
 
 
 def test_joined_behind_is_the_side_of_the_chest_plane(prefs, solver):

@@ -426,6 +426,14 @@ static PyObject* mod_depth(PyObject* self, PyObject* args) {
   return PyFloat_FromDouble(depth);
 }
 
+/* Whether a buffer of geom pairs (int32 (n, 2)) is ragged or names a geom the model lacks. */
+static int bad_pairs(const mjModel* m, const Py_buffer* P) {
+  const int32_t* g = P->buf;
+  int n = (int)(P->len / 8), bad = P->len % 8 != 0;
+  for (int i = 0; i < 2 * n && !bad; i++) bad = g[i] < 0 || g[i] >= m->ngeom;
+  return bad;
+}
+
 /* pairs_depth(model_addr, data_addr, pairs int32 (n, 2), allowed int32 (k, 2)) -> depth [m]:
    MuJoCo's narrowphase on the geom pairs alone (no mj_collision) on the posture in data (its
    kinematics run), the deepest penetration (>= 0) but between the body pairs allowed. */
@@ -440,8 +448,7 @@ static PyObject* mod_pairs_depth(PyObject* self, PyObject* args) {
   if (get_buf(op, &P, 4, -1, "pairs", 0)) return NULL;
   if (get_buf(oa, &B, 4, -1, "allowed", 0)) return release(&P), NULL;
   const int32_t* g = P.buf;
-  int n = (int)(P.len / 8), bad = P.len % 8 != 0;
-  for (int i = 0; i < 2 * n && !bad; i++) bad = g[i] < 0 || g[i] >= m->ngeom;
+  int n = (int)(P.len / 8), bad = bad_pairs(m, &P);
   double depth = bad ? 0.0 : pairs_depth(m, d, g, n, B.buf, (int)(B.len / 8));
   release(&P);
   release(&B);
@@ -464,8 +471,7 @@ static PyObject* mod_pairs_depths(PyObject* self, PyObject* args) {
   if (get_buf(op, &P, 4, -1, "pairs", 0)) return release(&Q), NULL;
   if (get_buf(oa, &B, 4, -1, "allowed", 0)) return release(&Q), release(&P), NULL;
   const int32_t* g = P.buf;
-  int np = (int)(P.len / 8), bad = P.len % 8 != 0 || (Q.len / 8) % m->nq != 0;
-  for (int i = 0; i < 2 * np && !bad; i++) bad = g[i] < 0 || g[i] >= m->ngeom;
+  int np = (int)(P.len / 8), bad = bad_pairs(m, &P) || (Q.len / 8) % m->nq != 0;
   Py_ssize_t n = (Py_ssize_t)(Q.len / 8 / m->nq);
   double* depth = bad ? NULL : malloc(sizeof(double) * (size_t)(n ? n : 1));
   if (bad) {

@@ -134,9 +134,10 @@ def fingerprint(
 ) -> str:
     """The options a rollout was realized with, as one line that the same options always
     give and other options never do, e.g. ``fps=50.0;mode=multitrack;rest=1;hold=0.3;
-    tempo=1.0;gap=1.5``: ``fps`` [frames/s], the ``mode``, the ``motion`` options (``rest``,
-    ``hold`` [s], ``tempo``, ``rest_gap`` [s]; defaults filled in), the sign directories ``lexicon`` an
-    ``.azee`` score was compiled with (absolute paths; their contents are not read),
+    tempo=1.0;gap=1.5``: ``fps`` [frames/s], the ``mode``, the ``motion`` options
+    (``rest``, ``hold`` [s], ``tempo``, ``rest_gap`` [s]; defaults filled in), the sign
+    directories ``lexicon`` an ``.azee`` score was compiled with (absolute paths; their
+    contents are not read),
     ``dynamics`` (the physics mode) and automatic ``blinks`` (seed, rate per minute).
     ``--resume`` realizes again an output whose recorded fingerprint differs."""
     from azee_mj.blend import REST_GAP, REST_HOLD

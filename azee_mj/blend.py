@@ -265,9 +265,9 @@ def track_curve(
     posture ``home`` (nq,) through its ``keys``, and a (T,) flag where it blends (see
     :func:`blend_window`). With ``rest``, the first blend is the track's lead-in (``rest.lead``
     long, or none: it starts in its first posture), it returns to ``home`` and back in each
-    of its ``rest.pauses`` and after its last hold at ``rest.relax_at`` (see :class:`Rest`). ``out``: where to write the joint values
-    (anything taking ``out[a:b] = values``, e.g. :class:`Columns` of the frames; returned)
-    instead of a new array."""
+    of its ``rest.pauses`` and after its last hold at ``rest.relax_at`` (see :class:`Rest`).
+    ``out``: where to write the joint values (anything taking ``out[a:b] = values``, e.g.
+    :class:`Columns` of the frames; returned) instead of a new array."""
     holds = holds_of(keys, dofs)
     start = holds[0].q if rest is not None and rest.lead is None and holds else home[dofs]
     if out is None:

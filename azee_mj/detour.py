@@ -307,14 +307,14 @@ class Detour:
         depth, first, last = np.empty(len(run)), np.empty(len(run)), np.empty(len(run))
         for allowed, idx in frames.items():
             first[idx], last[idx] = self.depth(run[0], allowed), self.depth(run[-1], allowed)
-            k = self.adapter.at(run[0])
-            rest = cn.pairs_depth(k.m, k.d, kept, allowed)
-            depth[idx] = self.adapter.depths(run[idx], allowed, (moved, rest))
+        k = self.adapter.at(run[0])  # the still pairs' place over the whole run
+        rest = {allowed: cn.pairs_depth(k.m, k.d, kept, allowed) for allowed in frames}
+        for allowed, idx in frames.items():
+            depth[idx] = self.adapter.depths(run[idx], allowed, (moved, rest[allowed]))
         return np.maximum(depth - ((1.0 - s) * first + s * last), 0.0)
 
-    def depth(self, q: np.ndarray, allowed, split=None) -> float:
+    def depth(self, q: np.ndarray, allowed) -> float:
         """How deep [m] posture ``q`` goes into the body, but for the body pairs ``allowed``
         (worked out once per posture by the adapter: a blend's keys are its end frames, and a
-        bend leaves the frames near its ends as they were); ``split``: see
-        :meth:`~azee_mj.ikadapter.IKAdapter.depth`."""
-        return self.adapter.depth(q, allowed, posed=False, split=split)
+        bend leaves the frames near its ends as they were)."""
+        return self.adapter.depth(q, allowed, posed=False)

@@ -110,16 +110,14 @@ class IKAdapter:
         bring together."""
         return self.depth(q, self.schedule.allowed_at(t)) > cn.COLLISION_TOL
 
-    def depth(self, q: np.ndarray, allowed=frozenset(), posed: bool = True, split=None) -> float:
+    def depth(self, q: np.ndarray, allowed=frozenset(), posed: bool = True) -> float:
         """Deepest penetration [m] (>= 0) of posture ``q`` (nq,) but for the body pairs
         ``allowed`` (:func:`~azee_mj.constraints.penetration_depth`, its kinematics run
         once); the solver's data holds that posture's kinematics afterwards (unless not
         ``posed``, when a depth already known costs no kinematics: a caller that reads only
         the depth). Each depth is kept (:data:`DEPTHS_KEPT` at most): a detour measures the
         same frames as it bends a blend, and the frame solver and the pacing measure many
-        of them again. ``split``: ``(pairs, rest)``, the geom pairs whose depth ``q`` may
-        change and the deepest penetration [m] of all the others (outside ``allowed``),
-        known: only those pairs are measured, to the same depth."""
+        of them again."""
         key = (q.tobytes(), allowed)
         out = self._depths.get(key)
         if out is not None:
@@ -129,18 +127,16 @@ class IKAdapter:
         k = self.solver.at(q)
         if len(self._depths) >= DEPTHS_KEPT:
             self._depths.clear()
-        if split is None:
-            out = cn.contact_depth(k.m, k.d, allowed)
-        else:
-            out = max(cn.pairs_depth(k.m, k.d, split[0], allowed), split[1])
-        self._depths[key] = out
+        out = self._depths[key] = cn.contact_depth(k.m, k.d, allowed)
         return out
 
     def depths(self, qs: np.ndarray, allowed, split) -> np.ndarray:
-        """(n,) :meth:`depth` of each posture of ``qs`` (n, nq) with ``split`` (not
-        ``posed``): those not measured before in one call of the compiled core (a detour
-        measures every frame of a blend at each bend). The solver's data holds no
-        particular posture afterwards."""
+        """(n,) :meth:`depth` of each posture of ``qs`` (n, nq), not ``posed``, knowing
+        ``split``: ``(pairs, rest)``, the geom pairs whose depth the postures may change and
+        the deepest penetration [m] of all the others (outside ``allowed``); only those
+        pairs are measured, to the same depth, the postures not measured before in one
+        call of the compiled core (a detour measures every frame of a blend at each bend).
+        The solver's data holds no particular posture afterwards."""
         keys = [(q.tobytes(), allowed) for q in qs]
         out = np.array([self._depths.get(key, np.nan) for key in keys])
         todo = np.flatnonzero(np.isnan(out))

@@ -224,31 +224,29 @@ class GroupPoser:
     def from_below(self, out: GroupSolve, q0, t0: float, where, seeds) -> GroupSolve:
         """A hand placed on the face with its elbow raised to the shoulder, brought up from
         below instead: the solve ``out`` (met) again with each such arm's forearm within
-        each of ``UNDER_TOL_DEG`` of vertical
+        each of ``UNDER_TOL_DEG`` of vertical, the tightest first
         (:meth:`~azee_mj.preferences.Preferences.forearms_under`), from ``q0`` and
         ``seeds`` (the solver keeps its most natural meet of them; its restarts start from
-        generic postures only), the tightest first; the first that meets everything with
-        the elbow low and is more natural than ``out`` by the solver's own measure
-        (:func:`~azee_mj.ik.natural_cost`, without the forearm rows) is kept (on the
+        generic postures only). The first that meets everything with the elbow low and is
+        more natural than ``out`` by the solver's own measure
+        (:func:`~azee_mj.ik.natural_cost`, without the forearm rows) is kept: on the
         examples, the sentence and the contact suite with its held-out list, the postures
-        of trying every tolerance and keeping the most natural, in fewer solves). The
-        usual starts come
-        at a temple head-on from the side and fold the arm up there, the upper arm
-        horizontal; the natural posture lies in another basin, one that no single
-        tolerance reaches from every start."""
+        that trying every tolerance and keeping the most natural gave, in fewer solves.
+        The usual starts come at a temple head-on from the side and fold the arm up
+        there, the upper arm horizontal; the natural posture lies in another basin, one
+        that no single tolerance reaches from every start."""
         prefs, ad = self.prefs, self.adapter
         if not prefs.forearms_under(out.cons, out.free, out.qpos, 0.0):
             return out
         problem = ad.problem(out.cons, out.free, q0, t0, preferences=where)
         cost = functools.partial(ik.natural_cost, ad.solver, problem)
-        best_cost = cost(out.qpos)
+        first = cost(out.qpos)
         for tol in np.radians(UNDER_TOL_DEG):
             under = prefs.forearms_under(out.cons, out.free, out.qpos, tol)
             res = ad.solve(out.cons + under, out.free, q0, t0, (q0, *seeds), preferences=where)
             if not res.converged or prefs.elbows_raised(out.cons, out.free, res.qpos):
                 continue  # a miss, or the elbow still raised
-            c = cost(res.qpos)
-            if c < best_cost:
+            if cost(res.qpos) < first:
                 kept = tuple(r for r in res.residuals if r.label != under[0].label)
                 return GroupSolve(dataclasses.replace(res, residuals=kept), out.cons, out.free)
         return out

@@ -103,6 +103,7 @@ class Preferences:
     def __init__(self, solver: ik.Solver, anatomy: SignerAnatomy, smap: SignerMap):
         self.solver, self.anatomy, self.smap = solver, anatomy, smap
         self.azee_site = {model: azee for azee, model in smap.sites.items()}
+        self._bone_of = {b.body: b for b in smap.bones.values()}  # see _on_face
         ssp = smap.loci.get("ssp")
         #: The model site where two hands meet (the neutral signing space), or None.
         self.meet = (
@@ -221,11 +222,11 @@ class Preferences:
         """(arm, its forearm's bone, its elbow's height above its shoulder [m]) of each
         free arm whose hand ``cons`` place on the face (above the shoulder, below the
         brows), on posture ``q``."""
-        fore = {b.body: b for b in self.smap.bones.values()}
-        k = self.solver.at(q)
+        below = self._below_brows(cons, free, q)  # (its kinematics on q, when any)
+        k = self.solver.kinematics()
         out = []
-        for arm, target in self._below_brows(cons, free, q):
-            bone, shoulder = fore.get(arm.fore), k.value(BodyOrigin(arm.upper))[2]
+        for arm, target in below:
+            bone, shoulder = self._bone_of.get(arm.fore), k.value(BodyOrigin(arm.upper))[2]
             if bone is not None and target[2] > shoulder:
                 out.append((arm, bone, k.value(BodyOrigin(arm.fore))[2] - shoulder))
         return out

@@ -194,8 +194,9 @@ def test_a_run_of_pairs_depths_refuses_postures_of_another_size(solver):
 
 
 def test_the_adapters_depths_of_a_run_are_its_depths_one_by_one(solver):
-    """:meth:`IKAdapter.depths` (split, in one call) gives each posture's :meth:`depth`
-    with the same split, known or not (half of them asked before)."""
+    """:meth:`IKAdapter.depths` (split, in one call) gives each posture's depth of the
+    moved pairs on its own kinematics, or the known rest if deeper, known or not (half of
+    them asked before)."""
     adapter = IKAdapter(Schedule(load_score(envelope(sync("S", 0.4))), solver))
     m = solver.model
     rng = np.random.default_rng(8)
@@ -205,10 +206,14 @@ def test_the_adapters_depths_of_a_run_are_its_depths_one_by_one(solver):
     qs[:, arms] = rng.uniform(solver.lower[arms], solver.upper[arms], size=(10, len(arms)))
     pairs = solver.all_pairs
     moved, rest = np.ascontiguousarray(pairs[::2]), 0.001
-    one_by_one = IKAdapter(adapter.schedule)
-    want = [one_by_one.depth(q, frozenset(), posed=False, split=(moved, rest)) for q in qs]
-    for q in qs[::2]:
-        adapter.depth(q, frozenset(), posed=False, split=(moved, rest))
+    want = []
+    for q in qs:
+        d = mujoco.MjData(m)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        want.append(max(cn.pairs_depth(m, d, moved, frozenset()), rest))
+    half = adapter.depths(qs[::2], frozenset(), (moved, rest))  # known before, half of them
+    assert half.tolist() == want[::2]
     got = adapter.depths(qs, frozenset(), (moved, rest))
     assert got.tolist() == want
     assert max(want) > rest  # some posture deeper than the pairs it leaves out

@@ -145,7 +145,7 @@ static int core_copy(Core* s, Py_buffer* B) {
   memcpy(&s->tun, B[2].buf, sizeof(Tunables));
   s->nrows = (int)(B[3].len / 8);
   s->nfree = (int)(B[4].len / 4);
-  s->nhard = (int)(B[6].len / 8);
+  s->nhard = (int)(B[6].len / 32);
   s->blocks = copy_of(B[0].buf, B[0].len), s->terms = copy_of(B[1].buf, B[1].len);
   s->inv = copy_of(B[3].buf, B[3].len), s->free = copy_of(B[4].buf, B[4].len);
   s->floor = copy_of(B[5].buf, B[5].len), s->hard = copy_of(B[6].buf, B[6].len);
@@ -159,7 +159,7 @@ static int core_copy(Core* s, Py_buffer* B) {
 
 /* Core(model_addr, data_addr, owner, blocks (Block records), terms (Term records), tunables
         (one Tunables record), inv (nrows f64), free (int32), floor (nbody*nbody f64),
-        r (nrows f64, writable), J (nrows*nv f64, writable), callback, hard (nhard*2 int32),
+        r (nrows f64, writable), J (nrows*nv f64, writable), callback, hard (nhard*4 f64: first row, end row, kind, tol),
         pairs (npair*2 int32: the geom pairs to collide, in order), clusters (ngeom int32:
         each geom's cluster, -1 for none)) */
 static int Core_init(Core* s, PyObject* args, PyObject* kw) {
@@ -178,7 +178,7 @@ static int Core_init(Core* s, PyObject* args, PyObject* kw) {
   s->nbody = s->m->nbody;
   static const char* what[9] = {"blocks", "terms", "tunables", "inv",     "free",
                                 "floor",  "hard",  "pairs",    "clusters"};
-  Py_ssize_t size[9] = {sizeof(Block), sizeof(Term), sizeof(Tunables), 8, 4, 8, 4, 4, 4};
+  Py_ssize_t size[9] = {sizeof(Block), sizeof(Term), sizeof(Tunables), 8, 4, 8, 8, 4, 4};
   Py_ssize_t count[9] = {-1, -1, 1, -1, -1, (Py_ssize_t)s->nbody * s->nbody, -1, -1,
                          s->m->ngeom};
   Py_buffer B[9] = {{0}};

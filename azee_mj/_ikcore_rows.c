@@ -134,6 +134,29 @@ int raw_rows(Core* s) {
   return 0;
 }
 
+/* A hard constraint's norm from its scaled rows r, in the report's measure so that it is 1
+   where the residual reaches the tolerance: H = (first row, end row, kind, tol). An
+   orientation's rows (HARD_CHORD: 3-row groups a - v; HARD_SINE: rows a . v, each over tol)
+   measure the chord or the sine of an angle: each group's angle over tol, the root sum of
+   their squares (a look's two eyes: at least the larger). */
+static double hard_norm(const double* H, const double* r) {
+  int first = (int)H[0], end = (int)H[1], kind = (int)H[2];
+  double tol = H[3], x = 0;
+  if (kind == HARD_LINEAR) {
+    for (int i = first; i < end; i++) x += r[i] * r[i];
+    return sqrt(x);
+  }
+  int g = kind == HARD_CHORD ? 3 : 1;
+  for (int i = first; i + g <= end; i += g) {
+    double c = 0;
+    for (int j = i; j < i + g; j++) c += r[j] * r[j];
+    c = sqrt(c) * tol;
+    double angle = kind == HARD_CHORD ? 2.0 * asin(fmin(0.5 * c, 1.0)) : asin(fmin(c, 1.0));
+    x += (angle / tol) * (angle / tol);
+  }
+  return sqrt(x);
+}
+
 /* Scaled rows over the free dofs of posture q into buffer set b; collision rows if collide.
    Returns 0, or -1 with a Python error set. */
 int evaluate(Core* s, const double* q, int collide, int b) {
@@ -156,11 +179,7 @@ int evaluate(Core* s, const double* q, int collide, int b) {
     double* dst = J + (size_t)i * nf;
     for (int j = 0; j < nf; j++) dst[j] = src[s->free[j]] * w;
   }
-  for (int h = 0; h < s->nhard; h++) {
-    double x = 0;
-    for (int i = s->hard[2 * h]; i < s->hard[2 * h + 1]; i++) x += r[i] * r[i];
-    s->norms[b][h] = sqrt(x);
-  }
+  for (int h = 0; h < s->nhard; h++) s->norms[b][h] = hard_norm(s->hard + 4 * h, r);
   int rows = s->nrows;
   double depth = 0.0;
   if (collide && collision_rows(s, b, &rows, &depth)) return PyErr_NoMemory(), -1;

@@ -23,6 +23,9 @@
 
 enum { B_POINT = 0, B_ORIENT = 1, B_JOINT = 2, B_GENERIC = 3 };
 enum { T_SITE = 0, T_BODY = 1 };
+/* How a hard constraint's rows give its norm (see hard_norm): as they are, or as the angle
+   of an orientation whose rows measure its chord or its sine. */
+enum { HARD_LINEAR = 0, HARD_CHORD = 1, HARD_SINE = 2 };
 
 /* One block of rows, [start, start + k). POINT: site - (c + sum coef_t term_t). ORIENT: body
    axis a = R local against v = (the constant c, value * a body axis, or value * unit(c + sum
@@ -104,7 +107,7 @@ typedef struct {
   double* norms[2];
   double depth[2];
   int nhard;
-  int* hard; /* (nhard, 2) row ranges of the hard constraints: one norm each */
+  double* hard; /* (nhard, 4) first row, end row, kind (HARD_*), tolerance: one norm each */
   /* naturalness (set_natural) */
   int ne, npref;
   int* edof;

@@ -391,6 +391,40 @@ def test_compiled_natural_rows_equal_the_objective(solver):
     np.testing.assert_allclose(np.frombuffer(J).reshape(r.size, -1), Jp, atol=1e-12)
 
 
+@pytest.mark.parametrize(
+    "c",
+    [
+        cn.Orient("palm_R", (0.0, 1.0, 0.0), cn.Rel.ALONG, kin.Const((0.0, 0.0, -1.0)), 0.26),
+        cn.Orient("palm_R", (0.0, 1.0, 0.0), cn.Rel.OPP, kin.Const((1.0, 0.0, 0.0)), 0.5),
+        cn.Orient("f_arm_R", (0.0, 0.0, 1.0), cn.Rel.PERP, kin.Const((0.0, 0.0, 1.0)), 0.2),
+        cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 1.3)), 0.01),
+    ],
+    ids=["along", "opp", "perp", "place"],
+)
+def test_a_hard_constraints_norm_in_the_core_is_its_residual_over_its_tolerance(solver, c):
+    """The core's norm of a hard constraint (what "met" and "done" compare to 1 and to the
+    stop fraction) is the residual the report measures over the tolerance: the angle, not
+    the chord or the sine an orientation's rows measure. It was the chord: a 15-degree
+    orientation counted as met at 15.03 degrees, which the report then called a miss."""
+    rng = np.random.default_rng(12)
+    plan = solver.plan(ik.IKProblem((c,)))
+    for _ in range(8):
+        q = _random_arm_posture(solver, rng)
+        norms = np.frombuffer(plan.core.evaluate(q, False)[2])
+        residual = c.residual(solver.at(q))
+        assert norms[0] == pytest.approx(residual / c.tol, rel=1e-9, abs=1e-12)
+
+
+def test_a_looks_norm_in_the_core_is_at_least_its_worse_eyes_angle(solver):
+    c = cn.Look((("eye_L", (1.0, 0, 0)), ("eye_R", (1.0, 0, 0))), kin.Const((0.4, 0.1, 0.3)), 0.1)
+    plan = solver.plan(ik.IKProblem((c,)))
+    for q in (solver.natural, _random_arm_posture(solver, np.random.default_rng(1))):
+        norm = np.frombuffer(plan.core.evaluate(q, False)[2])[0]
+        worst = c.residual(solver.at(q)) / c.tol
+        assert worst <= norm <= np.sqrt(2.0) * worst + 1e-12
+        assert worst > 0.5  # far from the target: the angles matter, not their chords
+
+
 def test_natural_cost_is_what_the_polish_minimises(solver):
     """:func:`azee_mj.ik.natural_cost` of a polished posture is the cost the core's polish
     reports for it, preferences included; a raised arm costs more than a hanging one."""

@@ -193,6 +193,22 @@ def _one_row(start: int) -> RowBlock:
     return RowBlock(start, start + 1, False)
 
 
+#: How the compiled core takes a hard constraint's norm from its rows (its ``HARD_*``):
+#: as they are, or as the angle of an orientation whose rows measure the angle's chord
+#: (along, opposite, a look's eyes) or its sine (perpendicular). The norm is then 1 where
+#: the residual the report measures reaches the tolerance.
+HARD_LINEAR, HARD_CHORD, HARD_SINE = 0, 1, 2
+
+
+def _hard_kind(c: Constraint) -> int:
+    """Constraint ``c``'s ``HARD_*`` kind."""
+    if isinstance(c, Look):
+        return HARD_CHORD
+    if isinstance(c, Orient):
+        return HARD_SINE if c.rel is Rel.PERP else HARD_CHORD
+    return HARD_LINEAR
+
+
 #: A joint target's kind and unit (by whether its joint slides) in a Residual.
 _JOINT_NAMED = {False: ("jointtarget", "rad"), True: ("jointtarget", "m")}
 
@@ -241,7 +257,7 @@ class Plan:
             self.r,
             self.J,
             self._generic_rows if self.generic else None,
-            np.array(self.hard, np.int32).reshape(-1),
+            np.array(self.hard, float).reshape(-1),
             solver.collision_pairs(self.free),
             solver.clusters,
         )
@@ -265,7 +281,7 @@ class Plan:
         compiler = BlockCompiler(solver)
         joint_info = solver.scope.joint_info
         self.items: list[RowBlock] = []
-        self.hard: list[tuple[int, int]] = []
+        self.hard: list[tuple[int, int, int, float]] = []
         self.generic: list[tuple[Constraint, int, int]] = []
         self._named: list[tuple[str, str]] = []
         inv: list[float] = []
@@ -279,7 +295,7 @@ class Plan:
                 self.items.append(_one_row(row))
                 self._named.append(_JOINT_NAMED[slide])
                 if hard:
-                    self.hard.append((row, row + 1))
+                    self.hard.append((row, row + 1, HARD_LINEAR, c.tol))
                 inv.append(1.0 / c.tol)
                 row += 1
                 continue
@@ -291,7 +307,7 @@ class Plan:
             self.items.append(RowBlock(row, row + k, generic))
             self._named.append(_named(solver, c))
             if not c.soft:
-                self.hard.append((row, row + k))
+                self.hard.append((row, row + k, _hard_kind(c), c.tol))
             start, hard = row, 0 if c.soft else 1
             for b in blocks:
                 rows.append(_record(BLOCK, {**b, "start": start, "hard": hard}))

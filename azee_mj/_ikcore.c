@@ -145,12 +145,21 @@ static int core_copy(Core* s, Py_buffer* B) {
   memcpy(&s->tun, B[2].buf, sizeof(Tunables));
   s->nrows = (int)(B[3].len / 8);
   s->nfree = (int)(B[4].len / 4);
+  if (B[6].len % 32) return PyErr_SetString(PyExc_ValueError, "hard: records of 4 f64"), -1;
   s->nhard = (int)(B[6].len / 32);
   s->blocks = copy_of(B[0].buf, B[0].len), s->terms = copy_of(B[1].buf, B[1].len);
   s->inv = copy_of(B[3].buf, B[3].len), s->free = copy_of(B[4].buf, B[4].len);
   s->floor = copy_of(B[5].buf, B[5].len), s->hard = copy_of(B[6].buf, B[6].len);
   if (!s->blocks || !s->terms || !s->inv || !s->free || !s->floor || !s->hard)
     return PyErr_NoMemory(), -1;
+  for (int h = 0; h < s->nhard; h++) {
+    const double* H = s->hard + 4 * h;
+    if (!(H[0] >= 0 && H[0] <= H[1] && H[1] <= s->nrows && H[2] >= HARD_LINEAR &&
+          H[2] <= HARD_SINE && H[3] > 0)) {
+      PyErr_Format(PyExc_ValueError, "hard: record %d is no (first, end, kind, tol)", h);
+      return -1;
+    }
+  }
   for (int b = 0; b < s->nblock; b++)
     if (s->blocks[b].kind == B_GENERIC) s->has_generic = 1;
   if (copy_pairs(s, B + 7) || copy_clusters(s, B + 8)) return -1;

@@ -13,6 +13,7 @@ from azee_mj.posture import contract, starts
 from azee_mj.posture.collision import moving_pairs, pair_coordinates, still_pairs
 from azee_mj.posture.contract import BLOCK
 from azee_mj.posture.plan import (
+    HARD_LINEAR,
     BlockCompiler,
     Plan,
     _joint_record,
@@ -86,7 +87,7 @@ def test_a_bad_geom_pair_is_refused_with_its_message(solver):
             np.zeros(0),
             np.zeros(0),
             None,
-            np.zeros(0, np.int32),
+            np.zeros(0),
             bad,
             solver.clusters,
         )
@@ -215,7 +216,7 @@ def test_a_joint_targets_record_is_the_compilers(solver):
         assert want.tobytes() == got.tobytes()
     plan = Plan(solver, ik.IKProblem(cons, ()))
     np.testing.assert_array_equal(plan.inv, [1 / 0.02, 1 / 0.001])
-    assert plan.hard == [(0, 1)]
+    assert plan.hard == [(0, 1, HARD_LINEAR, 0.02)]
     assert [(b.start, b.stop, b.scaled) for b in plan.items] == [(0, 1, False), (1, 2, False)]
     residuals, _ = plan.report(solver.natural)
     assert [(r.kind, r.unit) for r in residuals] == [("jointtarget", "rad"), ("jointtarget", "m")]
@@ -245,3 +246,31 @@ def test_still_pairs_keep_their_geoms_to_the_bit_and_the_others_move(solver):
     assert same[pairs[still]].all()
     assert not same[pairs[~still]].all(axis=1).any()
     assert still_pairs(coords, postures[:1]).all()  # one posture: nothing moves
+
+
+def test_a_bad_hard_record_is_refused_with_its_message(solver):
+    plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
+    for hard, message in [
+        (np.zeros(3), "hard: records of 4 f64"),
+        (np.array([0.0, 2.0, 0.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
+        (np.array([0.0, 1.0, 3.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
+    ]:
+        with pytest.raises(ValueError) as e:
+            native.core().Core(
+                solver.model._address,
+                solver.data._address,
+                None,
+                np.zeros(0, contract.BLOCK),
+                np.zeros(0, contract.TERM),
+                contract.tunables(),
+                np.zeros(1),
+                plan.free.astype(np.int32),
+                np.zeros((solver.model.nbody, solver.model.nbody)),
+                np.zeros(1),
+                np.zeros(solver.model.nv),
+                None,
+                hard,
+                np.zeros((0, 2), np.int32),
+                solver.clusters,
+            )
+        assert str(e.value) == message

@@ -321,13 +321,16 @@ class Solver:
         return result, best.rank
 
     def _first_attempts(self, plan, problem, q_start, history) -> tuple[Attempt, int]:
-        """The best attempt from every seed and the warm start, and their iterations."""
+        """The best attempt from every seed and the warm start (in that order, the first
+        of equal ranks), and their iterations."""
         best, iters = None, 0
         for start in [np.clip(q, plan.lower, plan.upper) for q in problem.seeds] + [q_start]:
             run = self._attempt(start, plan, history)
             iters += run.iterations
             if best is None or run.rank < best.rank:
                 best = run
+            if best.rank == (0, 0.0):
+                break  # met, and nothing is more natural: no later start can be better
         return best, iters
 
     def _restarts(self, best, plan, problem, q_start, history) -> tuple[Attempt, int, int]:

@@ -46,13 +46,11 @@ MEET_TOL = 0.1
 #: Two parts neither of which is a hand part (an elbow on the chest) [deg].
 FACING_TOL_BODY = 20.0
 #: An elbow held below its shoulder, as a natural preference when the hand is placed
-#: below the eyes: (how far below [m], the height above that costs one unit [m]).
-ELBOW_LOW = (0.02, 0.02)
+#: below the brows: (how far below [m], the height above that costs one unit [m]). As
+#: low as ``ELBOW_RAISED``: an elbow higher holds the upper arm nearly horizontal.
+ELBOW_LOW = (0.08, 0.02)
 #: How far above the highest brow (or eye) site a placed hand still keeps its elbow low [m].
 BROW_MARGIN = 0.005
-#: How far from vertical [deg] the forearm of a hand placed on the face may be in the solves
-#: that bring the hand up from below (:meth:`Preferences.forearms_under`), each tried.
-UNDER_TOL_DEG = (20.0, 30.0, 45.0, 60.0)
 #: An elbow less than this below its shoulder holds the upper arm nearly horizontal [m]: a
 #: hand on the face held so is solved again from below.
 ELBOW_RAISED = 0.08
@@ -231,26 +229,20 @@ class Preferences:
                 out.append((arm, bone, k.value(BodyOrigin(arm.fore))[2] - shoulder))
         return out
 
+    def raised_on_face(self, cons, free, q: np.ndarray) -> frozenset:
+        """The free arms whose hand ``cons`` place on the face (above the shoulder, below
+        the brows) with the elbow, on posture ``q``, nearly at the shoulder's height (less
+        than ``ELBOW_RAISED`` below it: the upper arm horizontal): the arms whose hand the
+        realizer tries bringing up from below (see
+        :meth:`~azee_mj.keyposes.GroupPoser.from_below`; an elbow above the shoulder misses
+        :meth:`elbows_low`, and the realizer's other arm branches answer it)."""
+        on_face = self._on_face(cons, free, q)
+        return frozenset(arm for arm, _, h in on_face if -ELBOW_RAISED < h <= 0.0)
+
     def elbows_raised(self, cons, free, q: np.ndarray) -> bool:
         """Whether posture ``q`` holds the elbow of a hand that ``cons`` place on the face
         less than ``ELBOW_RAISED`` below its shoulder, or above it."""
         return any(h > -ELBOW_RAISED for _, _, h in self._on_face(cons, free, q))
-
-    def forearms_under(self, cons, free, q: np.ndarray, tol: float) -> tuple[cn.Orient, ...]:
-        """For each free arm whose hand ``cons`` place on the face (above its shoulder,
-        below the brows) and whose elbow posture ``q`` holds nearly at its shoulder's
-        height (less than ``ELBOW_RAISED`` below it: :meth:`elbows_low` is met with the
-        upper arm horizontal; an elbow above the shoulder misses that preference, and the
-        realizer's other arm branches answer it), its forearm within ``tol`` [rad] of
-        vertical: not a preference but the constraints of another solve, the hand brought
-        up from below with the elbow low in front (see
-        :meth:`~azee_mj.keyposes.GroupPoser.from_below`). Empty if none."""
-        up = Const((0.0, 0.0, 1.0))
-        return tuple(
-            cn.Orient(arm.fore, bone.dir, cn.Rel.ALONG, up, tol, "forearm under")
-            for arm, bone, h in self._on_face(cons, free, q)
-            if -ELBOW_RAISED < h <= 0.0
-        )
 
     def elbows_up(self, cons, free, q: np.ndarray) -> set[str]:
         """The upper arms (body names) whose elbow posture ``q`` raises above the shoulder

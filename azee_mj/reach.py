@@ -96,6 +96,7 @@ def arm_seed(
     facing: tuple[np.ndarray, float] | None = None,
     swivel: float | None = None,
     lying: np.ndarray | None = None,
+    rising: bool = False,
 ) -> dict[str, float] | None:
     """Joint values [rad] that bring ``hand_point`` (a world point on the hand, on the
     posture in ``data`` after ``mj_kinematics``) to ``target`` [m], with a natural swivel
@@ -133,7 +134,9 @@ def arm_seed(
     target = np.asarray(target, float)
     source = s + APPROACH * Rp[:, 0]
     reach_dir = (target - source) / max(float(np.linalg.norm(target - source)), 1e-9)
-    if facing is not None:
+    if rising:
+        reach_dir = np.array([0.0, 0.0, 1.0])
+    elif facing is not None:
         reach_dir = -_turn_toward(np.asarray(facing[0], float), -reach_dir, facing[1])
     elif lying is not None:
         reach_dir = _along(reach_dir, lying)
@@ -154,7 +157,7 @@ def arm_seed(
     side = np.cross(n, down)
     if side[1] * arm.out < 0:
         side = -side
-    sw = SWIVEL_OUT if swivel is None else swivel
+    sw = (0.0 if rising else SWIVEL_OUT) if swivel is None else swivel
     elbow = n * a1 + rho * (np.cos(sw) * down + np.sin(sw) * side)
     u = elbow / l1
     # u = (cos a sin f, -sin a, -cos a cos f) in the rest frame; mirrored on the left.
@@ -306,6 +309,26 @@ def arm_seeds(
         seeds += [t for t in turned if t is not None]
         solver.at(q0, jacobians=True)  # leave ``data`` on ``q0`` for the next group
     return tuple(seeds)
+
+
+def rising_seed(solver: ik.Solver, arms, cons, q0: np.ndarray, hand_of) -> np.ndarray:
+    """A start (nq,): ``q0`` with each arm of ``arms`` in its two-bone posture for its
+    hand's first placement among ``cons``, the hand brought up from below (the wrist under
+    the target, the elbow hanging in the vertical plane through shoulder and wrist): a hand
+    on the face held with the elbow low in front, not the upper arm raised sideways.
+    ``hand_of(site)`` is the arm whose hand carries a model site, or None."""
+    m, d = solver.model, solver.data
+    k = solver.at(q0)
+    q, done = q0.copy(), set()
+    for c in cons:
+        if not isinstance(c, cn.Place) or (arm := hand_of(c.site)) not in arms or arm in done:
+            continue
+        done.add(arm)
+        point = d.site_xpos[solver.site_id(c.site)]
+        sol = arm_seed(m, d, arm, point, k.value(c.target), rising=True)
+        for j, v in (sol or {}).items():
+            q[m.jnt_qposadr[solver.joint_id(j)]] = v
+    return q
 
 
 #: Forearm rotations tried [fraction of the joint's range] to turn a seeded hand as the

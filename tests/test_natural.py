@@ -15,6 +15,7 @@ from scores import cstr, envelope, shaped, sync
 
 from azee_mj import constraints as cn
 from azee_mj import ergonomics, ik, mirror, natural, reach, timeline
+from azee_mj.anatomy import SignerAnatomy
 from azee_mj.kinematics import Const, Lin, SitePos
 from azee_mj.sites import DEFAULT_MAP
 
@@ -261,6 +262,30 @@ def test_a_pad_seed_brings_the_hand_in_along_the_surface(solver):
         w = d.xpos[solver.body_id(arm.hand)]
         assert (target - w) @ normal == pytest.approx(0.0, abs=1e-9)
         assert np.linalg.norm(target - w) == pytest.approx(np.linalg.norm(pad - wrist))
+
+
+def test_a_rising_seed_puts_the_wrist_under_the_target_with_the_elbow_hanging(solver):
+    """The hand brought up from below: the wrist under the target by the hand point's
+    distance from it, the elbow in the vertical plane through shoulder and wrist, below
+    them; only the arms asked are moved."""
+    m, d = solver.model, mujoco.MjData(solver.model)
+    k = solver.at(solver.natural)
+    temple = k.value(SitePos("TE_R"))
+    place = cn.Place("I_TIP_R", Const(tuple(temple)), 1e-3, "temple")
+    (right,) = [a for a in reach.arms_of(DEFAULT_MAP) if a.upper == "arm_R"]
+    tip, wrist0 = k.value(SitePos("I_TIP_R")), solver.data.xpos[solver.body_id(right.hand)].copy()
+    q = reach.rising_seed(
+        solver, {right}, [place], solver.natural, SignerAnatomy(m, DEFAULT_MAP).hand_of
+    )
+    _fk(m, d, q)
+    wrist = d.xpos[solver.body_id(right.hand)]
+    np.testing.assert_allclose(wrist, temple - [0, 0, np.linalg.norm(tip - wrist0)], atol=1e-9)
+    shoulder, elbow = d.xpos[solver.body_id(right.upper)], d.xpos[solver.body_id(right.fore)]
+    normal = np.cross(wrist - shoulder, [0.0, 0.0, 1.0])
+    assert (elbow - shoulder) @ normal == pytest.approx(0.0, abs=1e-9)  # swivel 0
+    assert elbow[2] < min(shoulder[2], wrist[2])
+    left = [solver.model.jnt_qposadr[solver.joint_id(j)] for j in ("arm_L_flex", "f_arm_L_flex")]
+    np.testing.assert_array_equal(q[left], solver.natural[left])
 
 
 def test_two_bone_seed_turns_the_elbow_by_its_swivel(solver):

@@ -111,22 +111,18 @@ def test_a_hand_on_the_face_with_the_elbow_at_the_shoulder_is_tried_from_below(p
     level, low, up = _flexed(solver, 85.0), _flexed(solver, 60.0), _flexed(solver, 110.0)
     assert -ELBOW_RAISED < _elbow_height(solver, level) <= 0.0
     assert _elbow_height(solver, low) < -ELBOW_RAISED and _elbow_height(solver, up) > 0.0
-    tol = np.radians(30.0)
-    fore = DEFAULT_MAP.bones["f_arm_R"]
-    under = cn.Orient(
-        "f_arm_R", fore.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)), tol, "forearm under"
-    )
-    assert prefs.forearms_under([face], free, level, tol) == (under,)
+    arm = next(a for a in prefs.anatomy.arms if a.upper == "arm_R")
+    assert prefs.raised_on_face([face], free, level) == {arm}
     assert prefs.elbows_raised([face], free, level)
-    assert prefs.forearms_under([face], free, low, tol) == ()  # the elbow is low already
+    assert prefs.raised_on_face([face], free, low) == set()  # the elbow is low already
     assert not prefs.elbows_raised([face], free, low)
     # above the shoulder: the elbow-low preference's own miss, not this start's
-    assert prefs.forearms_under([face], free, up, tol) == ()
+    assert prefs.raised_on_face([face], free, up) == set()
     assert prefs.elbows_raised([face], free, up)
     # a hand below the shoulder, or an arm that is not free: nothing to try
-    assert prefs.forearms_under([chest], free, level, tol) == ()
+    assert prefs.raised_on_face([chest], free, level) == set()
     assert not prefs.elbows_raised([chest], free, level)
-    assert prefs.forearms_under([face], (), level, tol) == ()
+    assert prefs.raised_on_face([face], (), level) == set()
 
 
 def test_joined_behind_is_the_side_of_the_chest_plane(prefs, solver):

@@ -225,8 +225,8 @@ class GroupPoser:
         """A hand placed on the face with its elbow raised to the shoulder, brought up from
         below instead: the solve ``out`` (met) again from :func:`~azee_mj.reach.rising_seed`
         (each such arm's wrist under its target, the elbow hanging), the preferred posture
-        still ``q0``. Kept when it meets everything with the elbow low and is more natural
-        than ``out`` by the solver's own measure (:func:`~azee_mj.ik.natural_cost`). The
+        still ``q0``. Kept when it meets everything and is more natural than ``out`` by
+        the solver's own measure (:func:`~azee_mj.ik.natural_cost`). The
         usual starts come at a temple head-on from the side and fold the arm up there, the
         upper arm horizontal; the natural posture lies in another basin."""
         prefs, ad = self.prefs, self.adapter
@@ -237,7 +237,7 @@ class GroupPoser:
         start = reach.rising_seed(ad.solver, raised, out.cons, q0, hand_of)
         fields = {"preferences": where, "prefer": q0}
         res = ad.solve(out.cons, out.free, start, t0, restarts=0, **fields)
-        if not res.converged or prefs.elbows_raised(out.cons, out.free, res.qpos):
+        if not res.converged:
             return out
         problem = ad.problem(out.cons, out.free, q0, t0, **fields)
         cost = functools.partial(ik.natural_cost, ad.solver, problem)

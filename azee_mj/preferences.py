@@ -231,18 +231,11 @@ class Preferences:
 
     def raised_on_face(self, cons, free, q: np.ndarray) -> frozenset:
         """The free arms whose hand ``cons`` place on the face (above the shoulder, below
-        the brows) with the elbow, on posture ``q``, nearly at the shoulder's height (less
-        than ``ELBOW_RAISED`` below it: the upper arm horizontal): the arms whose hand the
-        realizer tries bringing up from below (see
-        :meth:`~azee_mj.keyposes.GroupPoser.from_below`; an elbow above the shoulder misses
-        :meth:`elbows_low`, and the realizer's other arm branches answer it)."""
+        the brows) with the elbow, on posture ``q``, less than ``ELBOW_RAISED`` below the
+        shoulder or above it: the arms whose hand the realizer tries bringing up from
+        below (see :meth:`~azee_mj.keyposes.GroupPoser.from_below`)."""
         on_face = self._on_face(cons, free, q)
-        return frozenset(arm for arm, _, h in on_face if -ELBOW_RAISED < h <= 0.0)
-
-    def elbows_raised(self, cons, free, q: np.ndarray) -> bool:
-        """Whether posture ``q`` holds the elbow of a hand that ``cons`` place on the face
-        less than ``ELBOW_RAISED`` below its shoulder, or above it."""
-        return any(h > -ELBOW_RAISED for _, _, h in self._on_face(cons, free, q))
+        return frozenset(arm for arm, _, h in on_face if h > -ELBOW_RAISED)
 
     def elbows_up(self, cons, free, q: np.ndarray) -> set[str]:
         """The upper arms (body names) whose elbow posture ``q`` raises above the shoulder

@@ -113,15 +113,10 @@ def test_a_hand_on_the_face_with_the_elbow_at_the_shoulder_is_tried_from_below(p
     assert _elbow_height(solver, low) < -ELBOW_RAISED and _elbow_height(solver, up) > 0.0
     arm = next(a for a in prefs.anatomy.arms if a.upper == "arm_R")
     assert prefs.raised_on_face([face], free, level) == {arm}
-    assert prefs.elbows_raised([face], free, level)
     assert prefs.raised_on_face([face], free, low) == set()  # the elbow is low already
-    assert not prefs.elbows_raised([face], free, low)
-    # above the shoulder: the elbow-low preference's own miss, not this start's
-    assert prefs.raised_on_face([face], free, up) == set()
-    assert prefs.elbows_raised([face], free, up)
+    assert prefs.raised_on_face([face], free, up) == {arm}
     # a hand below the shoulder, or an arm that is not free: nothing to try
     assert prefs.raised_on_face([chest], free, level) == set()
-    assert not prefs.elbows_raised([chest], free, level)
     assert prefs.raised_on_face([face], (), level) == set()
 
 

@@ -33,7 +33,7 @@ from azee_mj.diagnose import diagnose
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.intervals import IntervalIndex
 from azee_mj.pathkeys import lead_into_paths
-from azee_mj.preferences import Preferences, widened
+from azee_mj.preferences import UNDER_TOL_DEG, Preferences, widened
 from azee_mj.schedule import FLAT_FIXED, DrivenConstraint, Mode
 
 #: Bisection steps bringing a recruited trunk back toward neutral (1/32 of its lean).
@@ -219,29 +219,42 @@ class GroupPoser:
             # Missed with and without facing: the limbs started anywhere (a last resort).
             wide = attempt(facing, wide=True)
             out = wide if wide.converged else out
-        return self.from_below(out, q0, t0, where) if out.converged else out
+        return self.from_below(out, q0, t0, where, seeds) if out.converged else out
 
-    def from_below(self, out: GroupSolve, q0, t0: float, where) -> GroupSolve:
-        """A hand placed on the face with its elbow raised to the shoulder, brought up from
-        below instead: the solve ``out`` (met) again from :func:`~azee_mj.reach.rising_seed`
-        (each such arm's wrist under its target, the elbow hanging), the preferred posture
-        still ``q0``. Kept when it meets everything and is more natural than ``out`` by
-        the solver's own measure (:func:`~azee_mj.ik.natural_cost`). The
-        usual starts come at a temple head-on from the side and fold the arm up there, the
-        upper arm horizontal; the natural posture lies in another basin."""
+    def from_below(self, out: GroupSolve, q0, t0: float, where, seeds) -> GroupSolve:
+        """A hand placed on the face with its elbow raised to the shoulder (or above it),
+        brought up from below instead. The solve ``out`` (met) again, first from
+        :func:`~azee_mj.reach.rising_seed` (each such arm's wrist under its target, the
+        elbow hanging; one attempt), then with each such forearm within each of
+        ``UNDER_TOL_DEG`` of vertical, the tightest first
+        (:meth:`~azee_mj.preferences.Preferences.forearms_under`), from ``q0`` and
+        ``seeds``. The first that meets everything and is more natural than ``out`` by the
+        solver's own measure (:func:`~azee_mj.ik.natural_cost`, without the forearm rows;
+        from the forearm solves, only with the elbow low) is kept. The usual starts come
+        at a temple head-on from the side and fold the arm up there, the upper arm
+        horizontal; the natural posture lies in another basin, one that no single start
+        or tolerance reaches for every contact."""
         prefs, ad = self.prefs, self.adapter
         raised = prefs.raised_on_face(out.cons, out.free, out.qpos)
         if not raised:
             return out
+        problem = ad.problem(out.cons, out.free, q0, t0, preferences=where)
+        cost = functools.partial(ik.natural_cost, ad.solver, problem)
+        first = cost(out.qpos)
         hand_of = self.schedule.anatomy.hand_of
         start = reach.rising_seed(ad.solver, raised, out.cons, q0, hand_of)
-        fields = {"preferences": where, "prefer": q0}
-        res = ad.solve(out.cons, out.free, start, t0, restarts=0, **fields)
-        if not res.converged:
-            return out
-        problem = ad.problem(out.cons, out.free, q0, t0, **fields)
-        cost = functools.partial(ik.natural_cost, ad.solver, problem)
-        return GroupSolve(res, out.cons, out.free) if cost(res.qpos) < cost(out.qpos) else out
+        res = ad.solve(out.cons, out.free, start, t0, restarts=0, preferences=where, prefer=q0)
+        if res.converged and cost(res.qpos) < first:
+            return GroupSolve(res, out.cons, out.free)
+        for tol in np.radians(UNDER_TOL_DEG):
+            under = prefs.forearms_under(raised, tol)
+            res = ad.solve(out.cons + under, out.free, q0, t0, (q0, *seeds), preferences=where)
+            if not res.converged or prefs.raised_on_face(out.cons, out.free, res.qpos):
+                continue  # a miss, or the elbow still raised
+            if cost(res.qpos) < first:
+                kept = tuple(r for r in res.residuals if r.label != under[0].label)
+                return GroupSolve(dataclasses.replace(res, residuals=kept), out.cons, out.free)
+        return out
 
     def join_in_front(self, faced: GroupSolve, wide: GroupSolve, cons) -> GroupSolve:
         """Hands join in the signing space before they meet head-on: face to face with a

@@ -51,6 +51,9 @@ FACING_TOL_BODY = 20.0
 ELBOW_LOW = (0.08, 0.02)
 #: How far above the highest brow (or eye) site a placed hand still keeps its elbow low [m].
 BROW_MARGIN = 0.005
+#: How far from vertical [deg] the forearm of a hand placed on the face may be in the solves
+#: that bring the hand up from below (:meth:`Preferences.forearms_under`), each tried.
+UNDER_TOL_DEG = (20.0, 30.0, 45.0, 60.0)
 #: An elbow less than this below its shoulder holds the upper arm nearly horizontal [m]: a
 #: hand on the face held so is solved again from below.
 ELBOW_RAISED = 0.08
@@ -236,6 +239,17 @@ class Preferences:
         below (see :meth:`~azee_mj.keyposes.GroupPoser.from_below`)."""
         on_face = self._on_face(cons, free, q)
         return frozenset(arm for arm, _, h in on_face if h > -ELBOW_RAISED)
+
+    def forearms_under(self, arms, tol: float) -> tuple[cn.Orient, ...]:
+        """For each arm of ``arms``, its forearm within ``tol`` [rad] of vertical: not a
+        preference but the constraints of another solve, the hand brought up from below
+        with the elbow low in front (see
+        :meth:`~azee_mj.keyposes.GroupPoser.from_below`)."""
+        up = Const((0.0, 0.0, 1.0))
+        return tuple(
+            cn.Orient(arm.fore, self._bone_of[arm.fore].dir, cn.Rel.ALONG, up, tol, "forearm under")
+            for arm in sorted(arms, key=lambda a: a.upper)
+        )
 
     def elbows_up(self, cons, free, q: np.ndarray) -> set[str]:
         """The upper arms (body names) whose elbow posture ``q`` raises above the shoulder

@@ -118,6 +118,12 @@ def test_a_hand_on_the_face_with_the_elbow_at_the_shoulder_is_tried_from_below(p
     # a hand below the shoulder, or an arm that is not free: nothing to try
     assert prefs.raised_on_face([chest], free, level) == set()
     assert prefs.raised_on_face([face], (), level) == set()
+    tol = np.radians(30.0)
+    fore = DEFAULT_MAP.bones["f_arm_R"]
+    under = cn.Orient(
+        "f_arm_R", fore.dir, cn.Rel.ALONG, Const((0.0, 0.0, 1.0)), tol, "forearm under"
+    )
+    assert prefs.forearms_under({arm}, tol) == (under,)
 
 
 def test_joined_behind_is_the_side_of_the_chest_plane(prefs, solver):

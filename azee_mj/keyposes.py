@@ -241,11 +241,6 @@ class GroupPoser:
         problem = ad.problem(out.cons, out.free, q0, t0, preferences=where)
         cost = functools.partial(ik.natural_cost, ad.solver, problem)
         first = cost(out.qpos)
-        hand_of = self.schedule.anatomy.hand_of
-        start = reach.rising_seed(ad.solver, raised, out.cons, q0, hand_of)
-        res = ad.solve(out.cons, out.free, start, t0, restarts=0, preferences=where, prefer=q0)
-        if res.converged and cost(res.qpos) < first:
-            return GroupSolve(res, out.cons, out.free)
         for tol in np.radians(UNDER_TOL_DEG):
             under = prefs.forearms_under(raised, tol)
             res = ad.solve(out.cons + under, out.free, q0, t0, (q0, *seeds), preferences=where)
@@ -254,6 +249,11 @@ class GroupPoser:
             if cost(res.qpos) < first:
                 kept = tuple(r for r in res.residuals if r.label != under[0].label)
                 return GroupSolve(dataclasses.replace(res, residuals=kept), out.cons, out.free)
+        hand_of = self.schedule.anatomy.hand_of
+        start = reach.rising_seed(ad.solver, raised, out.cons, q0, hand_of)
+        res = ad.solve(out.cons, out.free, start, t0, restarts=0, preferences=where, prefer=q0)
+        if res.converged and cost(res.qpos) < first:
+            return GroupSolve(res, out.cons, out.free)
         return out
 
     def join_in_front(self, faced: GroupSolve, wide: GroupSolve, cons) -> GroupSolve:

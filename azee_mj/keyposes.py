@@ -223,17 +223,17 @@ class GroupPoser:
 
     def from_below(self, out: GroupSolve, q0, t0: float, where, seeds) -> GroupSolve:
         """A hand placed on the face with its elbow raised to the shoulder (or above it),
-        brought up from below instead. The solve ``out`` (met) again, first from
-        :func:`~azee_mj.reach.rising_seed` (each such arm's wrist under its target, the
-        elbow hanging; one attempt), then with each such forearm within each of
-        ``UNDER_TOL_DEG`` of vertical, the tightest first
+        brought up from below instead: the solve ``out`` (met) again, first with each such
+        forearm within each of ``UNDER_TOL_DEG`` of vertical, the tightest first
         (:meth:`~azee_mj.preferences.Preferences.forearms_under`), from ``q0`` and
-        ``seeds``. The first that meets everything and is more natural than ``out`` by the
-        solver's own measure (:func:`~azee_mj.ik.natural_cost`, without the forearm rows;
-        from the forearm solves, only with the elbow low) is kept. The usual starts come
-        at a temple head-on from the side and fold the arm up there, the upper arm
-        horizontal; the natural posture lies in another basin, one that no single start
-        or tolerance reaches for every contact."""
+        ``seeds``, then from :func:`~azee_mj.reach.rising_seed` (each such arm's wrist
+        under its target, the elbow hanging; one attempt). The first that meets
+        everything and is more natural than ``out`` by the solver's own measure
+        (:func:`~azee_mj.ik.natural_cost`, without the forearm rows; from the forearm
+        solves, only with the elbow low) is kept. The usual starts come at a temple head-on
+        from the side and fold the arm up there, the upper arm horizontal; the natural
+        posture lies in another basin, one that no single start or tolerance reaches for
+        every contact."""
         prefs, ad = self.prefs, self.adapter
         raised = prefs.raised_on_face(out.cons, out.free, out.qpos)
         if not raised:

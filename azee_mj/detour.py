@@ -137,8 +137,10 @@ class Detour:
             if new is None or np.array_equal(new, q[a : b + 1, d]):
                 # not bent: its deepest frames next to an end, where its progress is slow
                 new = self.bent_run(q[a : b + 1], times[a : b + 1], d, joints, timed=True)
-            if new is not None and not self.rushed(q[a : b + 1], new, d, t, times):
-                bent = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
+            if new is None:
+                continue
+            bent = self.shortest(q[a : b + 1], times[a : b + 1], t, new)
+            if bent is not None:
                 # a bend's curve through its vias may overshoot a joint its keys hold at a
                 # bound (apart-cross's clavicle, 2.6 mrad past it): it keeps to the ranges
                 q[a : b + 1, d] = np.clip(bent, self._lower[d], self._upper[d])
@@ -147,19 +149,23 @@ class Detour:
 
     def shortest(self, run: np.ndarray, times: np.ndarray, track: str, first: np.ndarray):
         """The bend of arm ``track``'s blend ``run`` (n, nq) at ``times`` to keep: ``first``
-        (its dofs' values), or, when that leaves the wrist with more than one speed peak,
-        the :data:`ALTERNATIVES` bend that is not rushed and travels least, or about as
-        little with fewer speed peaks (:func:`better`); a grown bend only if it is one
-        speed bell (pacing may not make one of a grown bend's two). Vias on different sides
+        (its dofs' values), or, when that leaves the wrist with more than one speed peak or
+        moves it too fast (:meth:`rushed`), the :data:`ALTERNATIVES` bend that is not
+        rushed and travels least, or about as little with fewer speed peaks
+        (:func:`better`); a grown bend only if it is one speed bell (pacing may not make
+        one of a grown bend's two). None: every bend is rushed (the blend stays straight). Vias on different sides
         of an obstacle add up to a zig-zag: a longer way around, with a speed peak per
         leg, that pacing cannot make one bell without speeding it up. The shorter way, or
         one bell grown around the obstacle, paced, is one slower bell."""
         d = self.schedule.track_dofs[track]
         joints = sorted(self.schedule.track_joints[track])
-        speed = self.wrist_speed(run, first, d, track, times)
-        if speed is None or mv.speed_peaks(speed) <= 1:
-            return first
-        best, kept = first, (mv.speed_peaks(speed), float(speed.sum()))
+        if self.rushed(run, first, d, track, times):
+            best, kept = None, (np.inf, np.inf)
+        else:
+            speed = self.wrist_speed(run, first, d, track, times)
+            if speed is None or mv.speed_peaks(speed) <= 1:
+                return first
+            best, kept = first, (mv.speed_peaks(speed), float(speed.sum()))
         for reach, timed, grown in ALTERNATIVES:
             new = self.bent_run(run, times, d, joints, reach, timed, grown=grown)
             if new is None or self.rushed(run, new, d, track, times):

@@ -196,7 +196,7 @@ class GroupPoser:
             )
         )
         if not held and len(places) < len(cons) and any(it.starts_now for it in mine) and places:
-            q0 = ad.solve(places, free, q0, t0, seeds, natural=False).qpos
+            q0 = ad.solve(places, free, q0, t0, seeds, natural=False, restarts=1).qpos
         where = (
             prefs.meeting_place(cons)
             + prefs.elbows_low(cons, free, q0)

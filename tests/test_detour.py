@@ -12,7 +12,9 @@ import pytest
 from azee_mj import detour as dt
 from azee_mj import movement as mv
 from azee_mj.blend import minjerk
+from azee_mj.ikadapter import IKAdapter
 from azee_mj.model import load_model
+from azee_mj.schedule import Schedule, make_solver
 from azee_mj.score import load_score
 from azee_mj.timeline import realize
 
@@ -158,3 +160,26 @@ def test_a_bend_replaces_another_when_shorter_or_as_long_with_fewer_peaks(
     candidate, kept, replaces
 ):
     assert dt.better(candidate, kept) is replaces
+
+
+def test_a_rushed_first_bend_is_never_kept():
+    """A first bend that moves the wrist faster than the human range (where the straight
+    blend did not) gives way to an alternative that is not rushed, or to none."""
+    solver = make_solver()
+    detour = dt.Detour(IKAdapter(Schedule(load_score(two_signs("arbre", "info-about")), solver)))
+    d = detour.schedule.track_dofs["arm_R"]
+    times = np.arange(21) / FPS
+    qa = solver.natural.copy()
+    qb = qa.copy()
+    qb[d[2]] += 0.6  # shoulder flexion: a slow reach, out of the body
+    u = minjerk(np.linspace(0.0, 1.0, len(times)))
+    run = qa + u[:, None] * (qb - qa)
+    calm = run[:, d]
+    assert not detour.rushed(run, calm, d, "arm_R", times)
+    assert detour.shortest(run, times, "arm_R", calm) is calm  # one bell: kept
+    zigzag = calm.copy()
+    zigzag[1:-1:2, 2] += 0.5  # the shoulder thrown back and forth every other frame
+    assert detour.rushed(run, zigzag, d, "arm_R", times)
+    kept = detour.shortest(run, times, "arm_R", zigzag)
+    assert kept is not zigzag
+    assert kept is None or not detour.rushed(run, kept, d, "arm_R", times)

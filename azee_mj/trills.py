@@ -39,10 +39,38 @@ def least_squares_step(J: np.ndarray, target: np.ndarray) -> np.ndarray:
     return J.T @ np.linalg.solve(J @ J.T + TRILL_DAMPING * np.eye(J.shape[0]), target)
 
 
+def held_step(J: np.ndarray, H: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The least-norm joint step ``dq`` with ``J dq = target`` among those with ``H dq = 0``
+    (rows ``H``: placements held meanwhile), both damped by ``TRILL_DAMPING``: the
+    least-squares step of ``J N`` with ``N`` the projector onto the null space of ``H``.
+    Without rows in ``H``, :func:`least_squares_step`."""
+    if not len(H):
+        return least_squares_step(J, target)
+    N = np.eye(J.shape[1]) - least_squares_step(H, np.eye(len(H))) @ H
+    return N @ least_squares_step(J @ N, target)
+
+
+def held_rows(sched, k, block: sc.Block, tracks, t: float, dofs: np.ndarray) -> np.ndarray:
+    """(k, len(dofs)) the Jacobian rows, over ``dofs``, of the placements and orientations
+    of other blocks than ``block`` active at time ``t`` [s] that drive one of ``tracks``, on
+    kinematics ``k``: a trill shakes its site without moving them (a fingertip flickering
+    while its hand is placed and oriented: the fingers, not the arm)."""
+    rows = []
+    for b in sched.blocks:
+        if b is block or b.kind is not sc.BlockKind.CSTR or not b.start <= t < b.end:
+            continue
+        for dc in sched.block_constraints(b):
+            if dc.con is not None and set(dc.tracks) & set(tracks):
+                rows.append(dc.con.rows(k)[1][:, dofs])
+    return np.concatenate(rows) if rows else np.zeros((0, len(dofs)))
+
+
 def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Every trill of the adapter's schedule added on top of the frames ``q`` (T, nq) at
     ``times`` [s], in place: the trilled site or bone moves by the trill's offset along its
-    vector (a least-squares step of the tracks it drives, within the joint ranges); a
+    vector, a least-squares step of the tracks it drives within the joint ranges; when
+    other blocks then active hold those tracks (:func:`held_rows`), a step that keeps them,
+    the site's hand free to move too (a fingertip flickers with its finger); a
     frame the shake would push through the body is solved back out, near the shake."""
     sched, solver = adapter.schedule, adapter.solver
     comp, smap = sched.comp, sched.smap
@@ -53,7 +81,12 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
             if not isinstance(c, sc.Trill):
                 continue
             tracks = sorted(comp.tracks_of(c))
-            dofs = np.concatenate([sched.track_dofs[t] for t in tracks])
+            body = (
+                int(solver.model.site_bodyid[solver.site_id(comp.site(c.site))])
+                if c.site is not None
+                else solver.body_id(c.bone.model_body(smap))
+            )
+            hand = {t for t in comp.body_tracks(body, own_only=False) if t.startswith("hand")}
             sel = np.flatnonzero((times >= b.start) & (times < b.end))
             vector = compile_vector(c.vector, smap)
             for f, env in zip(sel, trill_envelope(times[sel], b.start, b.end)):
@@ -64,8 +97,15 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
                 if c.site is not None:
                     jac = k.site(solver.site_id(comp.site(c.site)))[1]
                 else:
-                    jac = k.body_rot_jac(solver.body_id(c.bone.model_body(smap)))
-                dq = least_squares_step(jac[:, dofs], a * v)
+                    jac = k.body_rot_jac(body)
+                dofs = np.concatenate([sched.track_dofs[t] for t in tracks])
+                if hand and held_rows(sched, k, b, tracks, times[f], dofs).any():
+                    # another block holds the limb: the fingers shake the site
+                    dofs = np.concatenate([sched.track_dofs[t] for t in sorted(hand)])
+                    held = held_rows(sched, k, b, hand, times[f], dofs)
+                    dq = held_step(jac[:, dofs], held, a * v)
+                else:
+                    dq = least_squares_step(jac[:, dofs], a * v)
                 q[f, dofs] = np.clip(q[f, dofs] + dq, solver.lower[dofs], solver.upper[dofs])
                 if adapter.penetrates(q[f], times[f]):  # the shake must not go through
                     joints = {j for t in tracks for j in sched.track_joints[t]}

@@ -1,7 +1,11 @@
-"""Trills: the envelope, the offset and the least-squares step called directly, and a
-site trill added to frames of the real signer."""
+"""Trills: the envelope, the offset and the least-squares steps called directly, a site
+trill added to frames of the real signer, and a fingertip flickering while another block
+holds its hand."""
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,9 +13,11 @@ import pytest
 from azee_mj.ikadapter import IKAdapter
 from azee_mj.schedule import Schedule
 from azee_mj.score import load_score
+from azee_mj.timeline import realize
 from azee_mj.trills import (
     TRILL_RAMP,
     add_trills,
+    held_step,
     least_squares_step,
     trill_envelope,
     trill_offset,
@@ -42,6 +48,42 @@ def test_least_squares_step_meets_the_target_with_the_least_norm():
     np.testing.assert_allclose(J @ dq, target, atol=1e-6)
     exact = np.linalg.pinv(J) @ target  # the least-norm solution: in the rows' span
     np.testing.assert_allclose(dq, exact, atol=1e-6)
+
+
+def test_a_held_step_keeps_the_held_rows_and_meets_the_target_when_it_can():
+    rng = np.random.default_rng(4)
+    J, H = rng.normal(size=(3, 9)), rng.normal(size=(4, 9))
+    target = np.array([0.01, -0.02, 0.005])
+    dq = held_step(J, H, target)
+    np.testing.assert_allclose(H @ dq, 0.0, atol=1e-9)
+    np.testing.assert_allclose(J @ dq, target, atol=1e-6)  # 5 free directions for 3 rows
+    # the least norm among them: no part along the held rows' span
+    np.testing.assert_allclose(np.linalg.lstsq(H.T, dq, rcond=None)[0], 0.0, atol=1e-6)
+    np.testing.assert_array_equal(
+        held_step(J, np.zeros((0, 9)), target), least_squares_step(J, target)
+    )
+
+
+def test_a_fingertip_flickers_while_another_block_holds_its_hand(solver):
+    # info-about: the middle fingertip trills up and down (12 mm, 5 Hz) while the wrist is
+    # placed at the other palm and the palm oriented within 1 degree (another block): the
+    # fingers flicker, the wrist stays, and every frame keeps the placement
+    root = Path(__file__).resolve().parent.parent
+    score = load_score(json.loads((root / "examples" / "info-about.json").read_text()))
+    r = realize(score, fps=50, solver=solver)
+    (flicker,) = [b for b in score.blocks() if b.path.endswith("FLICKER")]
+    t = r.time - r.score_start
+    sel = (t >= flicker.start + TRILL_RAMP) & (t < flicker.end - TRILL_RAMP)
+
+    def wiggle(site: str) -> float:  # peak to peak [m] about a smooth fit, up and down
+        z = r.site_pos[:, r.site_names.index(site), 2][sel]
+        z = z - np.polyval(np.polyfit(t[sel], z, 2), t[sel])
+        return float(z.max() - z.min())
+
+    assert wiggle("M_TIP_R") > 0.005  # it was 1 mm: the arm's shake, undone frame by frame
+    assert wiggle("WR_R") < 1e-4
+    beam = [tr for tr in r.traces if tr.block.endswith("BEAM")]
+    assert beam and all(tr.ok for tr in beam)
 
 
 def test_a_site_trill_moves_the_site_along_its_vector(solver):

@@ -19,6 +19,10 @@ from azee_mj.kinematics import compile_vector
 TRILL_RAMP = 0.05
 #: Damping of the least-squares step that moves a site or bone by a trill's offset.
 TRILL_DAMPING = 1e-6
+#: Largest excursion [rad] of a finger joint shaking a trill: the step's damping is chosen
+#: from the amplitude so that no step goes further (``|dq| <= |target| / (2 sqrt(damping))``),
+#: however folded the finger (a fist's fingertip cannot move up without a large turn).
+FINGER_TRILL_MAX = 0.25
 
 
 def trill_envelope(t: np.ndarray, start: float, end: float) -> np.ndarray:
@@ -33,21 +37,25 @@ def trill_offset(amplitude: float, frequency: float, envelope, t, start: float):
     return amplitude * envelope * np.sin(2 * np.pi * frequency * (t - start))
 
 
-def least_squares_step(J: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """The least-norm joint step ``dq`` with ``J dq = target`` (damped by
-    ``TRILL_DAMPING``): ``J^T (J J^T + lambda I)^-1 target``."""
-    return J.T @ np.linalg.solve(J @ J.T + TRILL_DAMPING * np.eye(J.shape[0]), target)
+def least_squares_step(
+    J: np.ndarray, target: np.ndarray, damping: float = TRILL_DAMPING
+) -> np.ndarray:
+    """The least-norm joint step ``dq`` with ``J dq = target`` (damped by ``damping``,
+    lambda): ``J^T (J J^T + lambda I)^-1 target``."""
+    return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), target)
 
 
-def held_step(J: np.ndarray, H: np.ndarray, target: np.ndarray) -> np.ndarray:
+def held_step(
+    J: np.ndarray, H: np.ndarray, target: np.ndarray, damping: float = TRILL_DAMPING
+) -> np.ndarray:
     """The least-norm joint step ``dq`` with ``J dq = target`` among those with ``H dq = 0``
-    (rows ``H``: placements held meanwhile), both damped by ``TRILL_DAMPING``: the
-    least-squares step of ``J N`` with ``N`` the projector onto the null space of ``H``.
-    Without rows in ``H``, :func:`least_squares_step`."""
+    (rows ``H``: placements held meanwhile): the least-squares step of ``J N`` (damped by
+    ``damping``) with ``N`` the projector onto the null space of ``H``. Without rows in
+    ``H``, :func:`least_squares_step`."""
     if not len(H):
-        return least_squares_step(J, target)
+        return least_squares_step(J, target, damping)
     N = np.eye(J.shape[1]) - least_squares_step(H, np.eye(len(H))) @ H
-    return N @ least_squares_step(J @ N, target)
+    return N @ least_squares_step(J @ N, target, damping)
 
 
 def held_rows(sched, k, block: sc.Block, tracks, t: float, dofs: np.ndarray) -> np.ndarray:
@@ -103,7 +111,8 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
                     # another block holds the limb: the fingers shake the site
                     dofs = np.concatenate([sched.track_dofs[t] for t in sorted(hand)])
                     held = held_rows(sched, k, b, hand, times[f], dofs)
-                    dq = held_step(jac[:, dofs], held, a * v)
+                    damping = (c.amplitude / (2.0 * FINGER_TRILL_MAX)) ** 2
+                    dq = held_step(jac[:, dofs], held, a * v, damping)
                 else:
                     dq = least_squares_step(jac[:, dofs], a * v)
                 q[f, dofs] = np.clip(q[f, dofs] + dq, solver.lower[dofs], solver.upper[dofs])

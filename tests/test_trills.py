@@ -15,6 +15,7 @@ from azee_mj.schedule import Schedule
 from azee_mj.score import load_score
 from azee_mj.timeline import realize
 from azee_mj.trills import (
+    FINGER_TRILL_MAX,
     TRILL_RAMP,
     add_trills,
     held_step,
@@ -62,6 +63,17 @@ def test_a_held_step_keeps_the_held_rows_and_meets_the_target_when_it_can():
     np.testing.assert_array_equal(
         held_step(J, np.zeros((0, 9)), target), least_squares_step(J, target)
     )
+
+
+def test_a_damped_step_is_bounded_however_singular_the_jacobian():
+    # a folded finger: its tip can hardly move along the trill; the damping bounds the turn
+    J = np.array([[1e-4, 0.0], [0.0, 0.05], [0.0, 0.0]])
+    target = np.array([0.012, 0.0, 0.0])
+    damping = (0.012 / (2.0 * FINGER_TRILL_MAX)) ** 2
+    for H in (np.zeros((0, 2)), np.array([[0.0, 1.0]])):
+        dq = held_step(J, H, target, damping)
+        assert np.abs(dq).max() <= FINGER_TRILL_MAX + 1e-12
+    assert np.abs(held_step(J, np.zeros((0, 2)), target)).max() > 4 * FINGER_TRILL_MAX
 
 
 def test_a_fingertip_flickers_while_another_block_holds_its_hand(solver):

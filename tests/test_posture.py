@@ -70,27 +70,34 @@ def test_an_unreachable_target_is_not_done(solver):
     assert res.stop not in (Stop.DONE, Stop.MET_SLOW) and res.polish is None
 
 
-def test_a_bad_geom_pair_is_refused_with_its_message(solver):
+def _raw_core(solver, nrows: int, hard: np.ndarray, pairs: np.ndarray):
+    """The compiled core built directly on ``solver``'s model and data, no blocks or terms,
+    ``nrows`` rows over the right arm's dofs, hard records ``hard`` and geom ``pairs``:
+    what the plan would pass, to check what the core refuses."""
     plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
+    return native.core().Core(
+        solver.model._address,
+        solver.data._address,
+        None,
+        np.zeros(0, contract.BLOCK),
+        np.zeros(0, contract.TERM),
+        contract.tunables(),
+        np.zeros(nrows),
+        plan.free.astype(np.int32),
+        np.zeros((solver.model.nbody, solver.model.nbody)),
+        np.zeros(nrows),
+        np.zeros(nrows * solver.model.nv),
+        None,
+        hard,
+        pairs,
+        solver.clusters,
+    )
+
+
+def test_a_bad_geom_pair_is_refused_with_its_message(solver):
     bad = np.array([[0, solver.model.ngeom]], np.int32)
     with pytest.raises(ValueError) as e:
-        native.core().Core(
-            solver.model._address,
-            solver.data._address,
-            None,
-            np.zeros(0, contract.BLOCK),
-            np.zeros(0, contract.TERM),
-            contract.tunables(),
-            np.zeros(0),
-            plan.free.astype(np.int32),
-            np.zeros((solver.model.nbody, solver.model.nbody)),
-            np.zeros(0),
-            np.zeros(0),
-            None,
-            np.zeros(0),
-            bad,
-            solver.clusters,
-        )
+        _raw_core(solver, 0, np.zeros(0), bad)
     assert str(e.value) == f"pairs: (0, {solver.model.ngeom}) is no geom pair in type order"
 
 
@@ -249,28 +256,11 @@ def test_still_pairs_keep_their_geoms_to_the_bit_and_the_others_move(solver):
 
 
 def test_a_bad_hard_record_is_refused_with_its_message(solver):
-    plan = solver.plan(ik.IKProblem((), DEFAULT_MAP.tracks["arm_R"]))
     for hard, message in [
         (np.zeros(3), "hard: records of 4 f64"),
         (np.array([0.0, 2.0, 0.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
         (np.array([0.0, 1.0, 3.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
     ]:
         with pytest.raises(ValueError) as e:
-            native.core().Core(
-                solver.model._address,
-                solver.data._address,
-                None,
-                np.zeros(0, contract.BLOCK),
-                np.zeros(0, contract.TERM),
-                contract.tunables(),
-                np.zeros(1),
-                plan.free.astype(np.int32),
-                np.zeros((solver.model.nbody, solver.model.nbody)),
-                np.zeros(1),
-                np.zeros(solver.model.nv),
-                None,
-                hard,
-                np.zeros((0, 2), np.int32),
-                solver.clusters,
-            )
+            _raw_core(solver, 1, hard, np.zeros((0, 2), np.int32))
         assert str(e.value) == message

@@ -153,10 +153,11 @@ class Detour:
         moves it too fast (:meth:`rushed`), the :data:`ALTERNATIVES` bend that is not
         rushed and travels least, or about as little with fewer speed peaks
         (:func:`better`); a grown bend only if it is one speed bell (pacing may not make
-        one of a grown bend's two). None: every bend is rushed (the blend stays straight). Vias on different sides
-        of an obstacle add up to a zig-zag: a longer way around, with a speed peak per
-        leg, that pacing cannot make one bell without speeding it up. The shorter way, or
-        one bell grown around the obstacle, paced, is one slower bell."""
+        one of a grown bend's two). None: every bend is rushed (the blend stays straight).
+        Vias on different sides of an obstacle add up to a zig-zag: a longer way around,
+        with a speed peak per leg, that pacing cannot make one bell without speeding it
+        up. The shorter way, or one bell grown around the obstacle, paced, is one slower
+        bell."""
         d = self.schedule.track_dofs[track]
         joints = sorted(self.schedule.track_joints[track])
         if self.rushed(run, first, d, track, times):

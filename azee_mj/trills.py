@@ -58,18 +58,23 @@ def held_step(
     return N @ least_squares_step(J @ N, target, damping)
 
 
-def held_rows(sched, k, block: sc.Block, tracks, t: float, dofs: np.ndarray) -> np.ndarray:
-    """(k, len(dofs)) the Jacobian rows, over ``dofs``, of the placements and orientations
-    of other blocks than ``block`` active at time ``t`` [s] that drive one of ``tracks``, on
+def holders(sched, block: sc.Block) -> list[tuple[float, float, object, frozenset]]:
+    """(start, end [s], constraint, tracks it drives) of every placement and orientation
+    of the cstr blocks other than ``block``: what may hold a trill's limb while it shakes."""
+    return [
+        (b.start, b.end, dc.con, frozenset(dc.tracks))
+        for b in sched.blocks
+        if b is not block and b.kind is sc.BlockKind.CSTR
+        for dc in sched.block_constraints(b)
+        if dc.con is not None
+    ]
+
+
+def held_rows(k, held, dofs: np.ndarray) -> np.ndarray:
+    """(k, len(dofs)) the Jacobian rows, over ``dofs``, of the constraints ``held`` on
     kinematics ``k``: a trill shakes its site without moving them (a fingertip flickering
     while its hand is placed and oriented: the fingers, not the arm)."""
-    rows = []
-    for b in sched.blocks:
-        if b is block or b.kind is not sc.BlockKind.CSTR or not b.start <= t < b.end:
-            continue
-        for dc in sched.block_constraints(b):
-            if dc.con is not None and set(dc.tracks) & set(tracks):
-                rows.append(dc.con.rows(k)[1][:, dofs])
+    rows = [con.rows(k)[1][:, dofs] for con in held]
     return np.concatenate(rows) if rows else np.zeros((0, len(dofs)))
 
 
@@ -77,7 +82,7 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
     """Every trill of the adapter's schedule added on top of the frames ``q`` (T, nq) at
     ``times`` [s], in place: the trilled site or bone moves by the trill's offset along its
     vector, a least-squares step of the tracks it drives within the joint ranges; when
-    other blocks then active hold those tracks (:func:`held_rows`), a step that keeps them,
+    other blocks then active hold those tracks (:func:`holders`), a step that keeps them
     the site's hand free to move too (a fingertip flickers with its finger); a
     frame the shake would push through the body is solved back out, near the shake."""
     sched, solver = adapter.schedule, adapter.solver
@@ -89,12 +94,15 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
             if not isinstance(c, sc.Trill):
                 continue
             tracks = sorted(comp.tracks_of(c))
+            dofs = np.concatenate([sched.track_dofs[t] for t in tracks])
             body = (
                 int(solver.model.site_bodyid[solver.site_id(comp.site(c.site))])
                 if c.site is not None
                 else solver.body_id(c.bone.model_body(smap))
             )
             hand = {t for t in comp.body_tracks(body, own_only=False) if t.startswith("hand")}
+            fingers = np.concatenate([sched.track_dofs[t] for t in sorted(hand)]) if hand else None
+            others = holders(sched, b) if hand else []
             sel = np.flatnonzero((times >= b.start) & (times < b.end))
             vector = compile_vector(c.vector, smap)
             for f, env in zip(sel, trill_envelope(times[sel], b.start, b.end)):
@@ -106,16 +114,17 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
                     jac = k.site(solver.site_id(comp.site(c.site)))[1]
                 else:
                     jac = k.body_rot_jac(body)
-                dofs = np.concatenate([sched.track_dofs[t] for t in tracks])
-                if hand and held_rows(sched, k, b, tracks, times[f], dofs).any():
+                now = [(con, tr) for t0, t1, con, tr in others if t0 <= times[f] < t1]
+                shake = dofs
+                if any(tr.intersection(tracks) for _, tr in now):
                     # another block holds the limb: the fingers shake the site
-                    dofs = np.concatenate([sched.track_dofs[t] for t in sorted(hand)])
-                    held = held_rows(sched, k, b, hand, times[f], dofs)
+                    shake = fingers
+                    held = held_rows(k, [con for con, tr in now if tr & hand], shake)
                     damping = (c.amplitude / (2.0 * FINGER_TRILL_MAX)) ** 2
-                    dq = held_step(jac[:, dofs], held, a * v, damping)
+                    dq = held_step(jac[:, shake], held, a * v, damping)
                 else:
-                    dq = least_squares_step(jac[:, dofs], a * v)
-                q[f, dofs] = np.clip(q[f, dofs] + dq, solver.lower[dofs], solver.upper[dofs])
+                    dq = least_squares_step(jac[:, shake], a * v)
+                q[f, shake] = np.clip(q[f, shake] + dq, solver.lower[shake], solver.upper[shake])
                 if adapter.penetrates(q[f], times[f]):  # the shake must not go through
                     joints = {j for t in tracks for j in sched.track_joints[t]}
                     soft = adapter.soft_targets(q[f], joints)

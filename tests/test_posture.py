@@ -11,9 +11,8 @@ from azee_mj import ik, native
 from azee_mj import kinematics as kin
 from azee_mj.posture import contract, starts
 from azee_mj.posture.collision import moving_pairs, pair_coordinates, still_pairs
-from azee_mj.posture.contract import BLOCK
+from azee_mj.posture.contract import BLOCK, HARD_LINEAR
 from azee_mj.posture.plan import (
-    HARD_LINEAR,
     BlockCompiler,
     Plan,
     _joint_record,

@@ -25,6 +25,11 @@ from azee_mj.constraints import COLLISION_TOL
 POINT, ORIENT, JOINT, GENERIC = 0, 1, 2, 3
 #: Point term kinds.
 SITE, BODY = 0, 1
+#: How the core takes a hard constraint's norm from its rows (``hard_norm``): as they are,
+#: or as the angle of an orientation whose rows measure the angle's chord (along, opposite,
+#: a look's eyes) or its sine (perpendicular). The norm is then 1 where the residual the
+#: report measures reaches the tolerance.
+HARD_LINEAR, HARD_CHORD, HARD_SINE = 0, 1, 2
 
 BLOCK = np.dtype(
     [

@@ -34,7 +34,17 @@ from azee_mj.constraints import (
 )
 from azee_mj.kinematics import BodyAxis, BodyOrigin, Const, Lin, SitePos
 from azee_mj.posture import contract
-from azee_mj.posture.contract import BLOCK, GENERIC, JOINT, ORIENT, POINT, TERM
+from azee_mj.posture.contract import (
+    BLOCK,
+    GENERIC,
+    HARD_CHORD,
+    HARD_LINEAR,
+    HARD_SINE,
+    JOINT,
+    ORIENT,
+    POINT,
+    TERM,
+)
 from azee_mj.posture.problem import IKProblem, LMRun, Residual, Stop
 
 if TYPE_CHECKING:
@@ -191,13 +201,6 @@ def _one_row(start: int) -> RowBlock:
     """The row block of a one-row constraint (a joint target) at row ``start`` (one shared
     record per row)."""
     return RowBlock(start, start + 1, False)
-
-
-#: How the compiled core takes a hard constraint's norm from its rows (its ``HARD_*``):
-#: as they are, or as the angle of an orientation whose rows measure the angle's chord
-#: (along, opposite, a look's eyes) or its sine (perpendicular). The norm is then 1 where
-#: the residual the report measures reaches the tolerance.
-HARD_LINEAR, HARD_CHORD, HARD_SINE = 0, 1, 2
 
 
 def _hard_kind(c: Constraint) -> int:

@@ -114,7 +114,7 @@ NECK_RAD = 0.045
 #: joints, the chest's top 29 mm under it: a pointing index could not lay its pad there
 #: without its curled fingers in the chest. The larynx stands 26 mm proud of the capsule (the
 #: neck 115 mm deep there, an adult's depth at the larynx), 40 mm wide and 56 mm tall, its
-#: back inside the capsule; its lower half lies between the clavicles' heads (``THROAT_BITS``).
+#: back inside the capsule, 29 mm or more from the clavicles at any shrug.
 LARYNX = (np.array([0.020, 0.0, 0.555]), np.array([0.030, 0.020, 0.028]))
 #: Height of `NK` (the throat) on the larynx: on its upper front, where the prominence turns
 #: up toward the chin (outward normal 11 degrees above the horizontal), 40 mm above the neck
@@ -299,17 +299,6 @@ def spine_joints(stem, cls, flex, lat, rot):
     ]
 
 
-#: Collision bits (contype, conaffinity). A geom of the class ``collision`` has contype 1 and
-#: conaffinity 3, so it collides with every other one; the larynx (``THROAT_BITS``) and the
-#: clavicles (``CLAVICLE_BITS``) share no bit and so never collide with each other (the
-#: larynx's lower half lies between the clavicles' heads, over the trachea; a shrug slides
-#: them beside it), in the solver and in the simulation alike. The signer contract lets the
-#: clavicles and the neck ignore each other; only this pair of geoms does.
-COLLISION_BITS = ("1", "3")
-THROAT_BITS = {"contype": "2", "conaffinity": "2"}
-CLAVICLE_BITS = {"contype": "1", "conaffinity": "1"}
-
-
 def col(**a):
     return dict(cls="collision", **a)
 
@@ -410,7 +399,7 @@ def build_neck_head(b2: Body) -> Body:
         np.array(neck_ft[3:]) - neck_ft[:3]
     )
     nk_fwd = unit(np.cross([0, 1, 0], np.subtract(neck_ft[3:], neck_ft[:3])))
-    neck.geom(**ellipsoid(LARYNX, shell(**THROAT_BITS)))
+    neck.geom(**ellipsoid(LARYNX, shell()))
     neck.geom(**ellipsoid((LARYNX[0], LARYNX[1] + 0.001), vis("skin")))
     neck.site("NK", front(LARYNX, 0.0, NK_Z))
     neck.site("NAPE", nk_axis - NECK_RAD * nk_fwd)  # the back of the neck, opposite NK
@@ -861,14 +850,14 @@ def build_arm() -> Body:
         hinge("clav_{X}_prot", "girdle", (0, 0, 1), -25, 25),
     ]
     clav_end = np.array([-0.002, -0.150, 0.492])
-    clav.geom(type="capsule", fromto=np.r_[CLAV_R, clav_end], size=[0.018], **col(**CLAVICLE_BITS))
+    clav.geom(type="capsule", fromto=np.r_[CLAV_R, clav_end], size=[0.018], **col())
     # shoulder slope (trapezius) under the shirt; a sphere inscribed in its outer end (over
     # the acromion, clear of the neck at any elevation) collides, and SH is on its top
     trap = np.array([-0.028, -0.035, 0.515, -0.008, -0.150, 0.495])
     clav.geom(type="capsule", fromto=trap, size=[0.032], **vis("shirt"))
     axis = unit(trap[3:] - trap[:3])
     acromion = trap[:3] + (0.140 - 0.035) / (0.150 - 0.035) * (trap[3:] - trap[:3])
-    clav.geom(type="sphere", pos=acromion, size=[0.032], **shell(**CLAVICLE_BITS))
+    clav.geom(type="sphere", pos=acromion, size=[0.032], **shell())
     # SH on the front of the cap, where a hand pats a shoulder: its normal turned 65 degrees
     # forward from the cap's top (24 degrees above the horizontal), so that a fingertip
     # meets it coming from the front and above with the elbow low (README.md, "Sites")
@@ -1121,14 +1110,7 @@ def signer_xml(root: Body) -> ET.ElementTree:
     d = ET.SubElement(top, "default", {"class": "visual"})
     ET.SubElement(d, "geom", contype="0", conaffinity="0", group="2", density="0")
     d = ET.SubElement(top, "default", {"class": "collision"})
-    ET.SubElement(
-        d,
-        "geom",
-        contype=COLLISION_BITS[0],
-        conaffinity=COLLISION_BITS[1],
-        group="3",
-        rgba="0.6 0.7 0.5 0.4",
-    )
+    ET.SubElement(d, "geom", group="3", rgba="0.6 0.7 0.5 0.4")
 
     asset = ET.SubElement(mj, "asset")
     for name, rgba in MATERIALS.items():

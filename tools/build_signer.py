@@ -112,12 +112,12 @@ NECK_RAD = 0.045
 #: The larynx (the thyroid cartilage, the Adam's apple) on the front of the neck capsule. The
 #: capsule alone is round, 90 mm across, and put the throat 21 mm behind the sternoclavicular
 #: joints, the chest's top 29 mm under it: a pointing index could not lay its pad there
-#: without its curled fingers in the chest. The larynx stands 26 mm proud of the capsule (the
-#: neck 115 mm deep there, an adult's depth at the larynx), 40 mm wide and 56 mm tall, its
+#: without its curled fingers in the chest. The larynx stands 29 mm proud of the capsule (the
+#: neck 119 mm deep there, an adult's depth at the larynx), 40 mm wide and 56 mm tall, its
 #: back inside the capsule, 29 mm or more from the clavicles at any shrug.
-LARYNX = (np.array([0.020, 0.0, 0.555]), np.array([0.030, 0.020, 0.028]))
+LARYNX = (np.array([0.020, 0.0, 0.555]), np.array([0.033, 0.020, 0.028]))
 #: Height of `NK` (the throat) on the larynx: on its upper front, where the prominence turns
-#: up toward the chin (outward normal 11 degrees above the horizontal), 40 mm above the neck
+#: up toward the chin (outward normal 12 degrees above the horizontal), 40 mm above the neck
 #: joint.
 NK_Z = 0.560
 #: Hair cap (collision too: the top and back of the head are hair), ears, nose base.

@@ -154,8 +154,9 @@ static int core_copy(Core* s, Py_buffer* B) {
     return PyErr_NoMemory(), -1;
   for (int h = 0; h < s->nhard; h++) {
     const double* H = s->hard + 4 * h;
+    int kind = (int)H[2] & ~HARD_RANGE; /* a range is an orientation's */
     if (!(H[0] >= 0 && H[0] <= H[1] && H[1] <= s->nrows && H[2] >= HARD_LINEAR &&
-          H[2] <= HARD_SINE && H[3] > 0)) {
+          kind <= HARD_SINE && (kind || H[2] == HARD_LINEAR) && H[3] > 0)) {
       PyErr_Format(PyExc_ValueError, "hard: record %d is no (first, end, kind, tol)", h);
       return -1;
     }
@@ -529,10 +530,11 @@ static PyObject* mod_layout(PyObject* self, PyObject* noargs) {
                      FIELD(Tunables, met_gain),     FIELD(Tunables, far_cost),
                      FIELD(Tunables, far_gain),     FIELD(Tunables, collision_tol),
                      FIELD(Tunables, null_tol),     FIELD(Tunables, natural_step),
-                     FIELD(Tunables, natural_iter), FIELD(Tunables, pad_)};
+                     FIELD(Tunables, natural_iter), FIELD(Tunables, pad_),
+                     FIELD(Tunables, range_free)};
   return Py_BuildValue("{sNsNsN}", "Block", record(sizeof(Block), block, 14), "Term",
                        record(sizeof(Term), term, 3), "Tunables",
-                       record(sizeof(Tunables), tun, 10));
+                       record(sizeof(Tunables), tun, 11));
 }
 
 static PyMethodDef Core_methods[] = {

@@ -140,7 +140,7 @@ int raw_rows(Core* s) {
    measure the chord or the sine of an angle: each group's angle over tol, the root sum of
    their squares (a look's two eyes: at least the larger). */
 static double hard_norm(const double* H, const double* r) {
-  int first = (int)H[0], end = (int)H[1], kind = (int)H[2];
+  int first = (int)H[0], end = (int)H[1], kind = (int)H[2] & ~HARD_RANGE;
   double tol = H[3], x = 0;
   if (kind == HARD_LINEAR) {
     for (int i = first; i < end; i++) x += r[i] * r[i];
@@ -155,6 +155,19 @@ static double hard_norm(const double* H, const double* r) {
     x += (angle / tol) * (angle / tol);
   }
   return sqrt(x);
+}
+
+/* A ranged orientation's scaled rows r[first, end) and their Jacobian J (nf columns), of
+   norm x (hard_norm), in its dead zone: zero within range_free of its tolerance, shrunk
+   beyond it to reach their full value at it; returns the norm so measured (0 in the dead
+   zone, 1 at the tolerance: "met" and "done" compare it as any other). */
+static double ranged(const Core* s, const double* H, double x, double* r, double* J, int nf) {
+  double free = s->tun.range_free, f = x > free ? (x - free) / x : 0.0;
+  for (int i = (int)H[0]; i < (int)H[1]; i++) {
+    r[i] *= f;
+    for (int j = 0; j < nf; j++) J[(size_t)i * nf + j] *= f;
+  }
+  return x > free ? (x - free) / (1.0 - free) : 0.0;
 }
 
 /* Scaled rows over the free dofs of posture q into buffer set b; collision rows if collide.
@@ -179,7 +192,11 @@ int evaluate(Core* s, const double* q, int collide, int b) {
     double* dst = J + (size_t)i * nf;
     for (int j = 0; j < nf; j++) dst[j] = src[s->free[j]] * w;
   }
-  for (int h = 0; h < s->nhard; h++) s->norms[b][h] = hard_norm(s->hard + 4 * h, r);
+  for (int h = 0; h < s->nhard; h++) {
+    const double* H = s->hard + 4 * h;
+    double x = hard_norm(H, r);
+    s->norms[b][h] = (int)H[2] & HARD_RANGE ? ranged(s, H, x, r, J, nf) : x;
+  }
   int rows = s->nrows;
   double depth = 0.0;
   if (collide && collision_rows(s, b, &rows, &depth)) return PyErr_NoMemory(), -1;

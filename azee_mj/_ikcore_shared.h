@@ -25,7 +25,7 @@ enum { B_POINT = 0, B_ORIENT = 1, B_JOINT = 2, B_GENERIC = 3 };
 enum { T_SITE = 0, T_BODY = 1 };
 /* How a hard constraint's rows give its norm (see hard_norm): as they are, or as the angle
    of an orientation whose rows measure its chord or its sine. */
-enum { HARD_LINEAR = 0, HARD_CHORD = 1, HARD_SINE = 2 };
+enum { HARD_LINEAR = 0, HARD_CHORD = 1, HARD_SINE = 2, HARD_RANGE = 4 /* a flag */ };
 
 /* One block of rows, [start, start + k). POINT: site - (c + sum coef_t term_t). ORIENT: body
    axis a = R local against v = (the constant c, value * a body axis, or value * unit(c + sum
@@ -60,6 +60,7 @@ typedef struct {
   double natural_step;  /* first trust radius of a polish step [rad] */
   int32_t natural_iter; /* most polish steps */
   int32_t pad_;
+  double range_free;    /* a ranged orientation's rows are zero within this fraction of tol */
 } Tunables;
 
 /* Why a run stopped (Python's azee_mj.posture.problem.Stop, same order). */
@@ -107,7 +108,8 @@ typedef struct {
   double* norms[2];
   double depth[2];
   int nhard;
-  double* hard; /* (nhard, 4) first row, end row, kind (HARD_*), tolerance: one norm each */
+  double* hard; /* (nhard, 4) first row, end row, kind (HARD_*, | HARD_RANGE for a
+                   ranged orientation), tolerance: one norm each */
   /* naturalness (set_natural) */
   int ne, npref;
   int* edof;

@@ -115,7 +115,11 @@ class Place:
 @dataclasses.dataclass(frozen=True)
 class Orient:
     """Body axis ``local`` (a bone's DIR or NRM) along / opposite / perpendicular to
-    ``vector``; within ``tol`` [rad]."""
+    ``vector``; within ``tol`` [rad]. ``ranged``: the tolerance is a range the posture may
+    use (the score's orientations): the solver turns the axis only into it, never pulling
+    it toward the middle from within ``RANGE_FREE`` of it (see
+    :mod:`azee_mj.posture.contract`); else the solver turns the axis as near to ``vector``
+    as it can (a contact's facing, head-on)."""
 
     body: str
     local: tuple[float, float, float]
@@ -123,6 +127,7 @@ class Orient:
     vector: Expr
     tol: float = np.deg2rad(1.0)
     label: str = ""
+    ranged: bool = True
     soft: ClassVar[bool] = False
 
     def _av(self, k: Kinematics, jac: bool):

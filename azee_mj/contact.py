@@ -105,7 +105,8 @@ ROLLED_FACING_DEG = 60.0
 
 def widened(constraints) -> tuple:
     """``constraints`` with the face-to-face rule (``Orient`` labelled ``X:facing``) of
-    each round-end placement ``X`` widened to :data:`ROLLED_FACING_DEG`."""
+    each round-end placement ``X`` widened to :data:`ROLLED_FACING_DEG`, a range: any point
+    of the end's dome may touch (:attr:`~azee_mj.constraints.Orient.ranged`)."""
     rolled = {
         f"{c.label}:facing"
         for c in constraints
@@ -113,7 +114,7 @@ def widened(constraints) -> tuple:
     }
     tol = float(np.radians(ROLLED_FACING_DEG))
     return tuple(
-        dataclasses.replace(c, tol=max(c.tol, tol))
+        dataclasses.replace(c, tol=max(c.tol, tol), ranged=True)
         if isinstance(c, cn.Orient) and c.label in rolled
         else c
         for c in constraints

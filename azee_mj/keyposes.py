@@ -243,7 +243,9 @@ class GroupPoser:
         first = cost(out.qpos)
         for tol in np.radians(UNDER_TOL_DEG):
             under = prefs.forearms_under(raised, tol)
-            res = ad.solve(out.cons + under, out.free, q0, t0, (q0, *seeds), preferences=where)
+            res = ad.solve(
+                out.cons + under, out.free, q0, t0, (q0, *seeds), preferences=where, ranges=True
+            )
             if not res.converged or prefs.raised_on_face(out.cons, out.free, res.qpos):
                 continue  # a miss, or the elbow still raised
             if cost(res.qpos) < first:

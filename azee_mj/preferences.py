@@ -157,7 +157,13 @@ class Preferences:
             label = f"{c.label}:facing"
             out.append(
                 cn.Orient(
-                    ba, normals[a], cn.Rel.OPP, BodyAxis(bb, normals[b]), facing_tol(a, b), label
+                    ba,
+                    normals[a],
+                    cn.Rel.OPP,
+                    BodyAxis(bb, normals[b]),
+                    facing_tol(a, b),
+                    label,
+                    ranged=False,
                 )
             )
         return out

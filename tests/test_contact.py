@@ -123,10 +123,13 @@ def test_widened_opens_only_the_facing_rule_of_a_round_end_placement(model):
     palm = cn.Place(sites["PA_R"], kin.SitePos(sites["PA_L"]), label="K#1")
     up = kin.Const((0.0, 0.0, 1.0))
     facing = [
-        cn.Orient(body, (1.0, 0.0, 0.0), cn.Rel.OPP, up, np.radians(20.0), f"{p.label}:facing")
+        cn.Orient(
+            body, (1.0, 0.0, 0.0), cn.Rel.OPP, up, np.radians(20.0), f"{p.label}:facing", False
+        )
         for body, p in (("index_R_3", tip), ("palm_R", palm))
     ]
     out = contact.widened((tip, palm, *facing))
     assert out[:2] == (tip, palm)
     assert out[2].tol == pytest.approx(np.radians(contact.ROLLED_FACING_DEG))
+    assert out[2].ranged  # any point of the end's dome may touch
     assert out[3] == facing[1]

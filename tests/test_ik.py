@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -12,6 +14,7 @@ from azee_mj import constraints as cn
 from azee_mj import ik, natural
 from azee_mj import kinematics as kin
 from azee_mj.check import check_poses
+from azee_mj.posture.contract import RANGE_FREE
 from azee_mj.schedule import make_solver
 from azee_mj.sites import DEFAULT_MAP
 
@@ -394,9 +397,15 @@ def test_compiled_natural_rows_equal_the_objective(solver):
 @pytest.mark.parametrize(
     "c",
     [
-        cn.Orient("palm_R", (0.0, 1.0, 0.0), cn.Rel.ALONG, kin.Const((0.0, 0.0, -1.0)), 0.26),
-        cn.Orient("palm_R", (0.0, 1.0, 0.0), cn.Rel.OPP, kin.Const((1.0, 0.0, 0.0)), 0.5),
-        cn.Orient("f_arm_R", (0.0, 0.0, 1.0), cn.Rel.PERP, kin.Const((0.0, 0.0, 1.0)), 0.2),
+        cn.Orient(
+            "palm_R", (0.0, 1.0, 0.0), cn.Rel.ALONG, kin.Const((0.0, 0.0, -1.0)), 0.26, "", False
+        ),
+        cn.Orient(
+            "palm_R", (0.0, 1.0, 0.0), cn.Rel.OPP, kin.Const((1.0, 0.0, 0.0)), 0.5, "", False
+        ),
+        cn.Orient(
+            "f_arm_R", (0.0, 0.0, 1.0), cn.Rel.PERP, kin.Const((0.0, 0.0, 1.0)), 0.2, "", False
+        ),
         cn.Place("I_TIP_R", kin.Const((0.3, -0.1, 1.3)), 0.01),
     ],
     ids=["along", "opp", "perp", "place"],
@@ -413,6 +422,55 @@ def test_a_hard_constraints_norm_in_the_core_is_its_residual_over_its_tolerance(
         norms = np.frombuffer(plan.core.evaluate(q, False)[2])
         residual = c.residual(solver.at(q))
         assert norms[0] == pytest.approx(residual / c.tol, rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("rel", [cn.Rel.ALONG, cn.Rel.PERP])
+def test_a_ranged_orientations_norm_is_zero_within_its_free_range_and_one_at_its_tol(solver, rel):
+    """A ranged orientation's norm in the core, in a problem solved with ranges: 0 while
+    its residual is within ``RANGE_FREE`` of its tolerance, then linear in the residual up
+    to 1 at the tolerance; its rows shrink by the same factor. Without ranges, or not
+    ranged, its rows and norm are as they are."""
+    rng = np.random.default_rng(3)
+    exact = cn.Orient("palm_R", PALM_R.nrm, rel, kin.Const((0.0, 0.0, -1.0)), 0.6, "", False)
+    ranged = dataclasses.replace(exact, ranged=True)
+    cores = [solver.plan(ik.IKProblem((c,), ranges=True)).core for c in (exact, ranged)]
+    plain = solver.plan(ik.IKProblem((ranged,))).core
+    seen = set()
+    for _ in range(24):
+        q = _random_arm_posture(solver, rng)
+        (r0, _, n0), (r1, _, n1) = (core.evaluate(q, False)[:3] for core in cores)
+        r2, _, n2 = plain.evaluate(q, False)[:3]
+        x = ranged.residual(solver.at(q)) / ranged.tol
+        n0, n1 = np.frombuffer(n0)[0], np.frombuffer(n1)[0]
+        assert n0 == pytest.approx(x, rel=1e-9)
+        assert np.frombuffer(n2)[0] == pytest.approx(x, rel=1e-9)
+        np.testing.assert_array_equal(np.frombuffer(r2), np.frombuffer(r0))
+        want = max(0.0, (x - RANGE_FREE) / (1.0 - RANGE_FREE))
+        assert n1 == pytest.approx(want, rel=1e-9, abs=1e-12)
+        f = max(0.0, (x - RANGE_FREE) / x)
+        np.testing.assert_allclose(np.frombuffer(r1), f * np.frombuffer(r0), atol=1e-12)
+        seen.add(x > RANGE_FREE)
+    assert seen == {True, False}  # both sides of the free range were drawn
+
+
+def test_a_reach_turns_a_ranged_orientation_only_into_its_range(solver):
+    """From a palm 20 degrees off an axis it may be 30 degrees off, a solve with ranges
+    leaves it there (the reach need not move it); without ranges, or asked exactly (not
+    ranged), the same solve turns it to the axis."""
+    place = cn.Place("I_TIP_R", kin.Const((0.3, -0.15, 0.45)))
+    down = cn.Orient("palm_R", PALM_R.nrm, cn.Rel.ALONG, kin.Const((0.0, 0.0, -1.0)))
+    met = solver.solve(ik.IKProblem((place, dataclasses.replace(down, tol=0.01))), solver.natural)
+    assert met.converged
+    tilted = dataclasses.replace(down, vector=kin.Const((0.0, np.sin(0.35), -np.cos(0.35))))
+    angles = {}
+    for ranged, ranges in ((True, True), (False, True), (True, False)):
+        c = dataclasses.replace(tilted, tol=np.radians(30.0), ranged=ranged)
+        res = solver.solve(ik.IKProblem((place, c), natural=False, ranges=ranges), met.qpos)
+        assert res.converged
+        angles[ranged, ranges] = np.degrees(c.residual(solver.at(res.qpos)))
+    assert angles[True, True] == pytest.approx(np.degrees(0.35), abs=0.5)  # as it started
+    assert angles[False, True] < 1.5  # the stop fraction of 30 degrees
+    assert angles[True, False] < 1.5
 
 
 def test_a_looks_norm_in_the_core_is_at_least_its_worse_eyes_angle(solver):

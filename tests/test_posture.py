@@ -259,6 +259,8 @@ def test_a_bad_hard_record_is_refused_with_its_message(solver):
         (np.zeros(3), "hard: records of 4 f64"),
         (np.array([0.0, 2.0, 0.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
         (np.array([0.0, 1.0, 3.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
+        # a range is an orientation's
+        (np.array([0.0, 1.0, 4.0, 0.01]), "hard: record 0 is no (first, end, kind, tol)"),
     ]:
         with pytest.raises(ValueError) as e:
             _raw_core(solver, 1, hard, np.zeros((0, 2), np.int32))

@@ -43,6 +43,7 @@ def test_a_skin_contact_faces_its_surfaces_unless_the_score_orients_one(prefs, s
     assert face.local == DEFAULT_MAP.normals["PA_R"]
     assert face.vector == BodyAxis("palm_L", DEFAULT_MAP.normals["PA_L"])
     assert face.tol == pytest.approx(np.radians(5.0))
+    assert not face.ranged  # head-on as near as the solver gets, not anywhere in its cone
     turned = cn.Orient("palm_L", (0.0, 0.0, 1.0), cn.Rel.ALONG, Const((0.0, 0.0, 1.0)), 0.1, "o")
     assert prefs.facing([place, turned]) == []
     assert prefs.facing([cn.Place("PA_R", Const((0.3, 0.0, 1.0)), 1e-3, "p")]) == []

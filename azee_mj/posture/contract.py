@@ -30,6 +30,9 @@ SITE, BODY = 0, 1
 #: a look's eyes) or its sine (perpendicular). The norm is then 1 where the residual the
 #: report measures reaches the tolerance.
 HARD_LINEAR, HARD_CHORD, HARD_SINE = 0, 1, 2
+#: Added to the kind of a ranged orientation (:attr:`~azee_mj.constraints.Orient.ranged`):
+#: see ``RANGE_FREE``.
+HARD_RANGE = 4
 
 BLOCK = np.dtype(
     [
@@ -63,6 +66,7 @@ TUNABLES = np.dtype(
         ("natural_step", "f8"),
         ("natural_iter", "i4"),
         ("pad_", "i4"),
+        ("range_free", "f8"),
     ],
     align=True,
 )
@@ -87,6 +91,12 @@ NULL_TOL = 1e-4
 NATURAL_ITER = 30
 #: First trust radius of a natural-posture step [rad].
 NATURAL_STEP = 0.2
+#: A ranged orientation's rows are zero within this fraction of its tolerance and grow to
+#: their full value at it (its norm: 0, then 1 at the tolerance). The reaching turns such
+#: an axis only into its range, not to its middle, and the polish turns it freely there: a
+#: palm asked within 30 degrees of facing down stays as the arm brings it, rather than the
+#: whole arm turning it exactly down (the upper arm raised to horizontal for *penser*).
+RANGE_FREE = 0.8
 
 
 @functools.cache
@@ -104,6 +114,7 @@ def tunables() -> np.ndarray:
         NATURAL_STEP,
         NATURAL_ITER,
         0,
+        RANGE_FREE,
     )
     out.flags.writeable = False
     return out

@@ -39,6 +39,7 @@ from azee_mj.posture.contract import (
     GENERIC,
     HARD_CHORD,
     HARD_LINEAR,
+    HARD_RANGE,
     HARD_SINE,
     JOINT,
     ORIENT,
@@ -203,12 +204,14 @@ def _one_row(start: int) -> RowBlock:
     return RowBlock(start, start + 1, False)
 
 
-def _hard_kind(c: Constraint) -> int:
-    """Constraint ``c``'s ``HARD_*`` kind."""
+def _hard_kind(c: Constraint, ranges: bool) -> int:
+    """Constraint ``c``'s ``HARD_*`` kind (with ``HARD_RANGE`` for a ranged orientation of
+    a problem solved with ``ranges``)."""
     if isinstance(c, Look):
         return HARD_CHORD
     if isinstance(c, Orient):
-        return HARD_SINE if c.rel is Rel.PERP else HARD_CHORD
+        kind = HARD_SINE if c.rel is Rel.PERP else HARD_CHORD
+        return kind | HARD_RANGE if ranges and c.ranged else kind
     return HARD_LINEAR
 
 
@@ -310,7 +313,7 @@ class Plan:
             self.items.append(RowBlock(row, row + k, generic))
             self._named.append(_named(solver, c))
             if not c.soft:
-                self.hard.append((row, row + k, _hard_kind(c), c.tol))
+                self.hard.append((row, row + k, _hard_kind(c, problem.ranges), c.tol))
             start, hard = row, 0 if c.soft else 1
             for b in blocks:
                 rows.append(_record(BLOCK, {**b, "start": start, "hard": hard}))

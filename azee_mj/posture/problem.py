@@ -74,6 +74,10 @@ class IKProblem:
       wide: start from the limbs anywhere in their ranges instead of the usual starts (a
         last resort, asked after those missed: a hand behind the head lies where no arm
         seed begins); a meet from there is kept only if it keeps the preferences.
+      ranges: the tolerance of each ranged orientation
+        (:attr:`~azee_mj.constraints.Orient.ranged`) is a range: its rows are zero within
+        ``RANGE_FREE`` of it (:mod:`azee_mj.posture.contract`); else every orientation's
+        rows pull its axis toward the middle of its tolerance.
     """
 
     constraints: tuple[Constraint, ...]
@@ -90,6 +94,7 @@ class IKProblem:
     restarts: int | None = None
     bounds: tuple[np.ndarray, np.ndarray] | None = dataclasses.field(default=None, compare=False)
     wide: bool = False
+    ranges: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

@@ -226,7 +226,9 @@ class GroupPoser:
         brought up from below instead: the solve ``out`` (met) again, first with each such
         forearm within each of ``UNDER_TOL_DEG`` of vertical, the tightest first
         (:meth:`~azee_mj.preferences.Preferences.forearms_under`), from ``q0`` and
-        ``seeds``, then from :func:`~azee_mj.reach.rising_seed` (each such arm's wrist
+        ``seeds``, the score's orientations asked as the ranges their tolerances are
+        (``IKProblem.ranges``: turned to the middle, a palm asked within 30 degrees took
+        the arm with it), then from :func:`~azee_mj.reach.rising_seed` (each such arm's wrist
         under its target, the elbow hanging; one attempt). The first that meets
         everything and is more natural than ``out`` by the solver's own measure
         (:func:`~azee_mj.ik.natural_cost`, without the forearm rows; from the forearm

@@ -160,7 +160,9 @@ static double hard_norm(const double* H, const double* r) {
 /* A ranged orientation's scaled rows r[first, end) and their Jacobian J (nf columns), of
    norm x (hard_norm), in its dead zone: zero within range_free of its tolerance, shrunk
    beyond it to reach their full value at it; returns the norm so measured (0 in the dead
-   zone, 1 at the tolerance: "met" and "done" compare it as any other). */
+   zone, 1 at the tolerance: "met" and "done" compare it as any other). The Jacobian is
+   scaled by the same factor, its own derivative left out (Gauss-Newton's approximation:
+   steps near the zone's edge come out short, and the damping takes them as they come). */
 static double ranged(const Core* s, const double* H, double x, double* r, double* J, int nf) {
   double free = s->tun.range_free, f = x > free ? (x - free) / x : 0.0;
   for (int i = (int)H[0]; i < (int)H[1]; i++) {

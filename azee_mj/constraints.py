@@ -116,10 +116,11 @@ class Place:
 class Orient:
     """Body axis ``local`` (a bone's DIR or NRM) along / opposite / perpendicular to
     ``vector``; within ``tol`` [rad]. ``ranged``: the tolerance is a range the posture may
-    use (the score's orientations): the solver turns the axis only into it, never pulling
-    it toward the middle from within ``RANGE_FREE`` of it (see
-    :mod:`azee_mj.posture.contract`); else the solver turns the axis as near to ``vector``
-    as it can (a contact's facing, head-on)."""
+    use (the score's orientations): in a problem solved with ``IKProblem.ranges`` the
+    solver turns the axis only into it, not pulling it toward the middle from within
+    ``RANGE_FREE`` of it (see :mod:`azee_mj.posture.contract`); not ranged (a contact's
+    facing, head-on), or without ranges, the axis is turned as near to ``vector`` as the
+    solver gets."""
 
     body: str
     local: tuple[float, float, float]

@@ -95,14 +95,16 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
                 continue
             tracks = sorted(comp.tracks_of(c))
             dofs = np.concatenate([sched.track_dofs[t] for t in tracks])
+            sid = solver.site_id(comp.site(c.site)) if c.site is not None else None
             body = (
-                int(solver.model.site_bodyid[solver.site_id(comp.site(c.site))])
-                if c.site is not None
+                int(solver.model.site_bodyid[sid])
+                if sid is not None
                 else solver.body_id(c.bone.model_body(smap))
             )
             hand = {t for t in comp.body_tracks(body, own_only=False) if t.startswith("hand")}
             fingers = np.concatenate([sched.track_dofs[t] for t in sorted(hand)]) if hand else None
             others = holders(sched, b) if hand else []
+            finger_damping = (c.amplitude / (2.0 * FINGER_TRILL_MAX)) ** 2
             sel = np.flatnonzero((times >= b.start) & (times < b.end))
             vector = compile_vector(c.vector, smap)
             for f, env in zip(sel, trill_envelope(times[sel], b.start, b.end)):
@@ -110,8 +112,8 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
                 v = k.value(vector)
                 v = v / np.linalg.norm(v)
                 a = trill_offset(c.amplitude, c.frequency, env, times[f], b.start)
-                if c.site is not None:
-                    jac = k.site(solver.site_id(comp.site(c.site)))[1]
+                if sid is not None:
+                    jac = k.site(sid)[1]
                 else:
                     jac = k.body_rot_jac(body)
                 now = [(con, tr) for t0, t1, con, tr in others if t0 <= times[f] < t1]
@@ -120,8 +122,7 @@ def add_trills(adapter: IKAdapter, q: np.ndarray, times: np.ndarray) -> np.ndarr
                     # another block holds the limb: the fingers shake the site
                     shake = fingers
                     held = held_rows(k, [con for con, tr in now if tr & hand], shake)
-                    damping = (c.amplitude / (2.0 * FINGER_TRILL_MAX)) ** 2
-                    dq = held_step(jac[:, shake], held, a * v, damping)
+                    dq = held_step(jac[:, shake], held, a * v, finger_damping)
                 else:
                     dq = least_squares_step(jac[:, shake], a * v)
                 q[f, shake] = np.clip(q[f, shake] + dq, solver.lower[shake], solver.upper[shake])
